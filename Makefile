@@ -1,0 +1,45 @@
+# Two commands on a fresh clone: `make demo` and `make test`. Both bootstrap .venv.
+PYTHON ?= $(shell command -v python3.11 || command -v python3)
+VENV := .venv
+BIN := $(VENV)/bin
+PACKAGES := protocol trackdb onboard trackside deploy
+
+# Tests use PostgreSQL when a server answers on 127.0.0.1:5432 (database `test`).
+PG_URL := postgresql+psycopg://postgres@127.0.0.1:5432/test
+PG_UP = $(shell $(BIN)/python -c "import socket; s=socket.socket(); s.settimeout(0.5); print('yes' if s.connect_ex(('127.0.0.1', 5432)) == 0 else '')" 2>/dev/null)
+
+.PHONY: demo test lint typecheck pytest bench clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(VENV)/.installed: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e .
+	touch $@
+
+$(VENV)/.installed-test: pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(VENV)/.installed $@
+
+demo: $(VENV)/.installed
+	$(BIN)/ato demo
+
+lint: $(VENV)/.installed-test
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+
+typecheck: $(VENV)/.installed-test
+	$(BIN)/mypy $(PACKAGES)
+
+pytest: $(VENV)/.installed-test
+	ATO_TEST_DATABASE_URL=$${ATO_TEST_DATABASE_URL:-$(if $(PG_UP),$(PG_URL),)} \
+		$(BIN)/python -m pytest
+
+test: lint typecheck pytest
+
+bench: $(VENV)/.installed-test
+	$(BIN)/ato bench zenoh
+
+clean:
+	rm -rf $(VENV) .ato .mypy_cache .pytest_cache .ruff_cache

@@ -1,0 +1,4 @@
+"""Composition: the ``ato`` command, process launchers, the demo and the benchmarks.
+
+The only package that may import both ``onboard`` and ``trackside``.
+"""

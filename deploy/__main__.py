@@ -1,0 +1,5 @@
+"""``python -m deploy`` is ``ato``."""
+
+from deploy.cli import app
+
+app()

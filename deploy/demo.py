@@ -1,0 +1,107 @@
+"""``ato demo``: router, trackside and URV1 on bologna-ring, driven remotely at 30 km/h.
+
+The router runs in this process, URV1 in a child process, and the trackside serves the console
+here. A demo driver asks URV1 for 30 km/h in remote driving, as at the start of the seed 000 field
+test. The demo account is the only fixed password ``ato`` has; it exists only in the demo's own
+database.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from pathlib import Path
+
+from rich.console import Console
+
+from deploy.processes import ato_command, child_process
+from protocol import (
+    LivelinessWatcher,
+    ProtocolError,
+    ZenohSettings,
+    open_session,
+    request,
+)
+from protocol import messages as m
+from protocol.registry import ALIVE_ONBOARD, COMMAND
+from protocol.router import run_router
+
+__all__ = ["DEMO_PASSWORD", "DEMO_USER", "DEMO_VEHICLE", "run_demo"]
+
+DEMO_USER = "demo"
+DEMO_PASSWORD = "ato-demo"
+DEMO_VEHICLE = "URV1"
+DEMO_ROUTER = "tcp/127.0.0.1:7447"
+DEMO_TARGET_SPEED_MPS = 30.0 / 3.6
+
+_log = logging.getLogger(__name__)
+
+
+def _demo_driver(stop: threading.Event) -> None:
+    """Once URV1 is alive, ask it for the demo speed until it accepts."""
+    with open_session(ZenohSettings(connect=(DEMO_ROUTER,))) as session:
+        alive = threading.Event()
+        key = ALIVE_ONBOARD.format(vehicle=DEMO_VEHICLE)
+        with LivelinessWatcher(session, key, lambda _key, up: alive.set() if up else None):
+            command_id = 0
+            while not stop.is_set():
+                if not alive.wait(0.5):
+                    continue
+                command = m.Command(
+                    vehicle_id=DEMO_VEHICLE, command_id=command_id, issued_by="demo-driver",
+                    body=m.RemoteDrivingTargetCommand(target_speed_mps=DEMO_TARGET_SPEED_MPS),
+                )  # fmt: skip
+                command_id += 1
+                try:
+                    ack = request(session, COMMAND, command, vehicle=DEMO_VEHICLE)
+                except ProtocolError as exc:
+                    _log.warning("demo driver: %s", exc)
+                    stop.wait(1.0)
+                    continue
+                if ack.accepted:
+                    _log.info("demo driver: %s accepted 30 km/h", DEMO_VEHICLE)
+                    return
+                stop.wait(1.0)
+
+
+def run_demo(*, port: int, data_dir: Path) -> None:
+    import uvicorn
+
+    from trackside.config import Settings
+    from trackside.main import create_app
+
+    data_dir.mkdir(parents=True, exist_ok=True)
+    stop = threading.Event()
+    ready = threading.Event()
+    router = threading.Thread(
+        target=run_router, args=(stop,), kwargs={"listen": [DEMO_ROUTER], "ready": ready},
+        name="zenoh-router", daemon=True,
+    )  # fmt: skip
+    router.start()
+    if not ready.wait(10.0):
+        raise SystemExit(f"the Zenoh router did not start on {DEMO_ROUTER} (port taken?)")
+
+    settings = Settings(
+        database_url=f"sqlite:///{(data_dir / 'demo.db').resolve()}",
+        zenoh_connect=(DEMO_ROUTER,),
+        admin_user=DEMO_USER,
+        admin_password=DEMO_PASSWORD,
+    )
+    onboard_args = ato_command("onboard", "--vehicle", DEMO_VEHICLE, "--zenoh", DEMO_ROUTER)
+    with child_process(onboard_args, log_file=data_dir / f"onboard-{DEMO_VEHICLE}.log"):
+        driver = threading.Thread(target=_demo_driver, args=(stop,), daemon=True)
+        driver.start()
+        console = Console()
+        console.rule("[bold]ato demo")
+        console.print(f"Console:  [bold]http://127.0.0.1:{port}/[/bold]")
+        console.print(
+            f"Login:    user [bold]{DEMO_USER}[/bold]  password [bold]{DEMO_PASSWORD}[/bold]"
+        )
+        console.print(f"Vehicle:  {DEMO_VEHICLE} on bologna-ring, remote driving at 30 km/h")
+        console.print(f"Logs:     {data_dir}/   Stop with Ctrl-C")
+        console.rule()
+        try:
+            uvicorn.run(create_app(settings), host="127.0.0.1", port=port, log_level="warning")
+        finally:
+            stop.set()
+    router.join(5.0)

@@ -1,0 +1,319 @@
+"""Trackside ↔ onboard messages: pydantic v2 models carried as JSON over Zenoh.
+
+Every message forbids unknown fields, carries ``schema_version`` and uses SI units (m, s, m/s,
+m/s², N). The session messages follow SUBSET-126 in spirit (DOMAIN.md §2.3): a handshake request
+(HSReq), its acceptance (HSAck) or rejection (HSRej), a termination; journey profiles (JP) are
+delivered and acknowledged (JPAck); status reports (STR) flow periodically.
+
+Abbreviations: ATO (automatic train operation), ATO-OB / ATO-TS (onboard / trackside), ETCS
+(European Train Control System), SC (supervisory controller of the ADF), ADF (autonomous driving
+function), RD / AD (remote / autonomous driving), JP (journey profile), TP (timing point),
+EB (emergency brake), STR (status report).
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+from typing import Annotated, Literal, Self
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+__all__ = [
+    "SCHEMA_VERSION",
+    "AtoState",
+    "Command",
+    "CommandAck",
+    "CommandBody",
+    "EngageCommand",
+    "DisengageCommand",
+    "EtcsMode",
+    "Event",
+    "EventSeverity",
+    "JourneyProfile",
+    "JourneyProfileAck",
+    "JourneyProfileStatus",
+    "Message",
+    "PingCommand",
+    "RemoteDrivingTargetCommand",
+    "ScState",
+    "SessionAccept",
+    "SessionReject",
+    "SessionRejectReason",
+    "SessionRequest",
+    "SessionResponse",
+    "SessionTermination",
+    "StatusReport",
+    "SupervisionStatus",
+    "TimingPoint",
+    "TimingPointKind",
+]
+
+SCHEMA_VERSION = 1
+"""Version of the message schemas in this module; bumped on any incompatible change."""
+
+VehicleId = Annotated[
+    str,
+    Field(min_length=1, max_length=32, pattern=r"^[A-Za-z0-9_-]+$", description="Vehicle id"),
+]
+NonNegativeFloat = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
+FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+
+
+class AtoState(StrEnum):
+    """ATO-OB states of SUBSET-125 §9 (DOMAIN.md §2.1)."""
+
+    NP = "NP"
+    CONFIGURATION = "CO"
+    NOT_AVAILABLE = "NA"
+    AVAILABLE = "AV"
+    READY = "RE"
+    ENGAGED = "EG"
+    DISENGAGING = "DE"
+    FAILURE = "FA"
+
+
+class EtcsMode(StrEnum):
+    """ETCS onboard modes of SUBSET-026 §4 (Baseline 4 list, DOMAIN.md §1.6)."""
+
+    NP = "NP"
+    SB = "SB"
+    PS = "PS"
+    SH = "SH"
+    SM = "SM"
+    FS = "FS"
+    AD = "AD"
+    LS = "LS"
+    SR = "SR"
+    OS = "OS"
+    SL = "SL"
+    NL = "NL"
+    UN = "UN"
+    TR = "TR"
+    PT = "PT"
+    SF = "SF"
+    IS = "IS"
+    SN = "SN"
+    RV = "RV"
+
+
+class ScState(StrEnum):
+    """States of the ADF supervisory controller (seed 000 §5)."""
+
+    OFF = "OFF"
+    AD = "AD"
+    RD = "RD"
+    HRD2AD = "HRD2AD"
+    HAD2RD = "HAD2RD"
+
+
+class SupervisionStatus(StrEnum):
+    """ETCS supervision statuses (SUBSET-026 §3.13.10)."""
+
+    NORMAL = "normal"
+    INDICATION = "indication"
+    OVERSPEED = "overspeed"
+    WARNING = "warning"
+    INTERVENTION = "intervention"
+
+
+class Message(BaseModel):
+    """Base of every wire message: frozen, no unknown fields, versioned."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    schema_version: Literal[1] = Field(default=1, description="Message schema, SCHEMA_VERSION")
+
+
+class StatusReport(Message):
+    """Periodic status of one vehicle (the STR), published at the report interval."""
+
+    vehicle_id: VehicleId
+    seq: int = Field(ge=0, description="Report counter, +1 per report")
+    sim_time_s: NonNegativeFloat = Field(description="Onboard simulated time [s]")
+    line_id: str = Field(min_length=1, max_length=64, description="Line the vehicle runs on")
+    position_m: FiniteFloat = Field(description="Estimated front-end chainage [m]")
+    speed_mps: FiniteFloat = Field(description="Estimated speed [m/s]")
+    acceleration_mps2: FiniteFloat = Field(description="Estimated acceleration [m/s²]")
+    traction_force_n: FiniteFloat = Field(description="Applied longitudinal force u [N]")
+    ato_state: AtoState
+    etcs_mode: EtcsMode
+    sc_state: ScState
+    supervision_status: SupervisionStatus = SupervisionStatus.NORMAL
+    target_speed_mps: NonNegativeFloat | None = Field(
+        default=None, description="Remote-driving target speed [m/s], when one is set"
+    )
+
+
+class EventSeverity(StrEnum):
+    INFO = "info"
+    WARNING = "warning"
+    ERROR = "error"
+
+
+class Event(Message):
+    """A notable onboard occurrence, delivered reliably in order."""
+
+    vehicle_id: VehicleId
+    seq: int = Field(ge=0, description="Event counter, +1 per event")
+    sim_time_s: NonNegativeFloat = Field(description="Onboard simulated time [s]")
+    severity: EventSeverity
+    code: str = Field(min_length=1, max_length=64, pattern=r"^[a-z0-9_.]+$")
+    text: str = Field(max_length=1024)
+
+
+class PingCommand(BaseModel):
+    """Asks the vehicle to acknowledge; used for link checks and latency measurement."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    type: Literal["ping"] = "ping"
+
+
+class RemoteDrivingTargetCommand(BaseModel):
+    """The remote driver's target speed for remote driving (RD)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    type: Literal["rd_target_speed"] = "rd_target_speed"
+    target_speed_mps: float = Field(ge=0.0, le=100.0, allow_inf_nan=False)
+
+
+class EngageCommand(BaseModel):
+    """The driver's "ATO Engage"."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    type: Literal["engage"] = "engage"
+
+
+class DisengageCommand(BaseModel):
+    """The driver's "ATO Disengage"."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    type: Literal["disengage"] = "disengage"
+
+
+CommandBody = Annotated[
+    PingCommand | RemoteDrivingTargetCommand | EngageCommand | DisengageCommand,
+    Field(discriminator="type"),
+]
+
+
+class Command(Message):
+    """A trackside command to one vehicle, answered by a :class:`CommandAck`."""
+
+    vehicle_id: VehicleId
+    command_id: int = Field(ge=0, description="Issuer's counter, echoed in the ack")
+    issued_by: str = Field(min_length=1, max_length=64, description="User or service")
+    body: CommandBody
+
+
+class CommandAck(Message):
+    """The vehicle's answer to a command: accepted for execution, or rejected with a reason."""
+
+    vehicle_id: VehicleId
+    command_id: int = Field(ge=0)
+    accepted: bool
+    reason: str | None = Field(default=None, max_length=256)
+    sim_time_s: NonNegativeFloat
+
+
+class TimingPointKind(StrEnum):
+    STOPPING = "stopping"
+    PASSING = "passing"
+    SKIP = "skip"
+
+
+class TimingPoint(BaseModel):
+    """A timing point (TP) of a journey profile, located on the line."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    id: str = Field(min_length=1, max_length=64)
+    position_m: FiniteFloat = Field(ge=0.0, description="Stopping or passing chainage [m]")
+    kind: TimingPointKind
+    arrival_time_s: NonNegativeFloat = Field(description="Planned arrival, from journey start [s]")
+    arrival_tolerance_s: NonNegativeFloat = Field(default=0.0, description="T_ARRIVAL_WINDOW [s]")
+    departure_time_s: NonNegativeFloat | None = Field(default=None, description="Departure [s]")
+    minimum_dwell_s: NonNegativeFloat = Field(default=0.0, description="Minimum dwell [s]")
+    end_of_journey: bool = False
+
+
+class JourneyProfileStatus(StrEnum):
+    INVALID = "invalid"
+    VALID = "valid"
+    UNAVAILABLE = "unavailable"
+    UPDATE = "update"
+    OVERWRITE = "overwrite"
+
+
+class JourneyProfile(Message):
+    """A journey profile delivered to a vehicle (SUBSET-125 §6.4, reduced)."""
+
+    vehicle_id: VehicleId
+    journey_id: str = Field(min_length=1, max_length=64)
+    version: int = Field(ge=0)
+    status: JourneyProfileStatus
+    line_id: str = Field(min_length=1, max_length=64)
+    track_data_version: str = Field(min_length=1, max_length=128, description="Line hash")
+    max_speed_mps: NonNegativeFloat | None = Field(default=None, description="Journey cap [m/s]")
+    timing_points: tuple[TimingPoint, ...] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _one_end_of_journey_last(self) -> Self:
+        ends = [index for index, tp in enumerate(self.timing_points) if tp.end_of_journey]
+        if ends != [len(self.timing_points) - 1]:
+            raise ValueError("exactly one timing point must be the end of journey, and the last")
+        return self
+
+
+class JourneyProfileAck(Message):
+    """The vehicle's acceptance or rejection of a journey profile (JPAck)."""
+
+    vehicle_id: VehicleId
+    journey_id: str = Field(min_length=1, max_length=64)
+    version: int = Field(ge=0)
+    accepted: bool
+    reason: str | None = Field(default=None, max_length=256)
+
+
+class SessionRequest(Message):
+    """Handshake request from an onboard (HSReq)."""
+
+    vehicle_id: VehicleId
+    supported_versions: tuple[int, ...] = Field(min_length=1, max_length=16)
+    etcs_id: int = Field(ge=0, lt=2**24, description="NID_ENGINE")
+    train_length_m: float = Field(gt=0.0, le=1500.0, allow_inf_nan=False)
+    track_data_version: str | None = Field(default=None, max_length=128)
+
+
+class SessionAccept(Message):
+    """Handshake acceptance (HSAck)."""
+
+    type: Literal["accept"] = "accept"
+    trackside_id: str = Field(min_length=1, max_length=64)
+    version: int = Field(ge=1)
+    response_timeout_s: float = Field(gt=0.0, le=600.0, allow_inf_nan=False)
+    status_interval_s: float = Field(gt=0.0, le=60.0, allow_inf_nan=False)
+
+
+class SessionRejectReason(StrEnum):
+    INCOMPATIBLE_VERSIONS = "incompatible_versions"
+    OTHER_TRACKSIDE_IN_CHARGE = "other_trackside_in_charge"
+    TRACKSIDE_IN_CHARGE_UNKNOWN = "trackside_in_charge_unknown"
+
+
+class SessionReject(Message):
+    """Handshake rejection (HSRej) with its reason."""
+
+    type: Literal["reject"] = "reject"
+    trackside_id: str = Field(min_length=1, max_length=64)
+    reason: SessionRejectReason
+
+
+SessionResponse = Annotated[SessionAccept | SessionReject, Field(discriminator="type")]
+
+
+class SessionTermination(Message):
+    """Either side ends the session (SESSTerm / SESSTermReq)."""
+
+    vehicle_id: VehicleId
+    by: Literal["onboard", "trackside"]
+    reason: str = Field(max_length=256)

@@ -1,0 +1,206 @@
+"""The Zenoh key-space registry: one table, key expression → payload → direction → rate → delivery.
+
+Everything exchanged between ATO-TS and ATO-OB goes through a :class:`Topic` of this table, so
+that the payload model, the direction, the expected rate and the delivery discipline of a key are
+written down once. Keys live under ``ato/``; ``{vehicle}`` and ``{instance}`` are filled in by
+:meth:`Topic.key`. The table is documented for operators in ``docs/keyspace.md``.
+
+Deliveries:
+
+- ``LATEST``: only the newest value matters (status); senders drop under congestion and
+  receivers keep the latest per key.
+- ``FIFO``: every message matters, in order (events, journey profiles); senders block under
+  congestion and receivers queue.
+- ``QUERY``: a request answered by a reply (commands, session handshake), delivered reliably.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any, Generic, TypeVar
+
+from pydantic import TypeAdapter, ValidationError
+
+from protocol import messages as m
+from protocol._exceptions import KeyExpressionError, PayloadError
+
+__all__ = [
+    "ALIVE_ONBOARD",
+    "ALIVE_TRACKSIDE",
+    "COMMAND",
+    "EVENT",
+    "JOURNEY_PROFILE",
+    "JOURNEY_PROFILE_ACK",
+    "SESSION",
+    "SESSION_TERMINATION",
+    "STATUS",
+    "TOPICS",
+    "Delivery",
+    "Direction",
+    "Topic",
+]
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+_PLACEHOLDER = re.compile(r"\{([a-z_]+)\}")
+_CHUNK = r"([A-Za-z0-9_-]+)"
+
+
+class Direction(StrEnum):
+    ONBOARD_TO_TRACKSIDE = "ob->ts"
+    TRACKSIDE_TO_ONBOARD = "ts->ob"
+    ANY = "any"
+
+
+class Delivery(StrEnum):
+    LATEST = "latest"
+    FIFO = "fifo"
+    QUERY = "query"
+
+
+def _alternate(parts: list[str]) -> list[tuple[bool, str]]:
+    """Pairs each piece of ``re.split`` output with whether it was a captured placeholder."""
+    return [(index % 2 == 1, part) for index, part in enumerate(parts)]
+
+
+@dataclass(frozen=True)
+class Topic(Generic[T]):
+    """One entry of the key-space registry.
+
+    Parameters
+    ----------
+    name
+        Short name used in logs and counters.
+    key_template
+        Key expression with ``{placeholders}`` for its variable chunks.
+    payload_type
+        Model (or annotated union) of the payload; of the request for ``QUERY`` topics.
+    direction
+        Which side publishes (or queries).
+    delivery
+        Latest value, reliable FIFO, or query/reply.
+    rate_hz
+        Expected publication rate [Hz]; ``None`` for sporadic topics.
+    reply_type
+        Model of the reply for ``QUERY`` topics.
+    """
+
+    name: str
+    key_template: str
+    payload_type: Any
+    direction: Direction
+    delivery: Delivery
+    rate_hz: float | None = None
+    reply_type: Any = None
+    _adapter: TypeAdapter[T] = field(init=False, repr=False, compare=False)
+    _reply_adapter: TypeAdapter[Any] | None = field(init=False, repr=False, compare=False)
+    _pattern: re.Pattern[str] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "_adapter", TypeAdapter(self.payload_type))
+        reply = TypeAdapter(self.reply_type) if self.reply_type is not None else None
+        object.__setattr__(self, "_reply_adapter", reply)
+        parts = _PLACEHOLDER.split(self.key_template)
+        regex = "".join(_CHUNK if odd else re.escape(part) for odd, part in _alternate(parts))
+        object.__setattr__(self, "_pattern", re.compile(f"^{regex}$"))
+
+    @property
+    def placeholders(self) -> tuple[str, ...]:
+        return tuple(_PLACEHOLDER.findall(self.key_template))
+
+    @property
+    def period_s(self) -> float | None:
+        return None if self.rate_hz is None else 1.0 / self.rate_hz
+
+    def key(self, **chunks: str) -> str:
+        """The concrete key for these chunk values; a missing or bad chunk raises."""
+        if set(chunks) != set(self.placeholders):
+            raise KeyExpressionError(
+                f"{self.name}: expected chunks {self.placeholders}, got {tuple(chunks)}"
+            )
+        for name, value in chunks.items():
+            if not re.fullmatch(_CHUNK, value):
+                raise KeyExpressionError(f"{self.name}: bad {name} chunk {value!r}")
+        return self.key_template.format(**chunks)
+
+    def wildcard(self, **chunks: str) -> str:
+        """A key expression matching this topic for the given chunks and any others."""
+        filled = {name: chunks.get(name, "*") for name in self.placeholders}
+        return self.key_template.format(**filled)
+
+    def parse(self, key: str) -> dict[str, str]:
+        """The chunk values of a concrete key of this topic."""
+        match = self._pattern.match(key)
+        if match is None:
+            raise KeyExpressionError(f"{key!r} is not a {self.name} key ({self.key_template})")
+        return dict(zip(self.placeholders, match.groups(), strict=True))
+
+    def encode(self, message: T) -> bytes:
+        return self._adapter.dump_json(message)
+
+    def decode(self, payload: bytes) -> T:
+        try:
+            return self._adapter.validate_json(payload)
+        except ValidationError as exc:
+            raise PayloadError(f"{self.name}: {exc.error_count()} error(s): {exc}") from exc
+
+    def encode_reply(self, reply: Any) -> bytes:
+        if self._reply_adapter is None:
+            raise KeyExpressionError(f"{self.name} is not a query topic")
+        return self._reply_adapter.dump_json(reply)
+
+    def decode_reply(self, payload: bytes) -> Any:
+        if self._reply_adapter is None:
+            raise KeyExpressionError(f"{self.name} is not a query topic")
+        try:
+            return self._reply_adapter.validate_json(payload)
+        except ValidationError as exc:
+            raise PayloadError(f"{self.name} reply: {exc}") from exc
+
+
+STATUS: Topic[m.StatusReport] = Topic(
+    "status", "ato/ob/{vehicle}/status", m.StatusReport,
+    Direction.ONBOARD_TO_TRACKSIDE, Delivery.LATEST, rate_hz=5.0,
+)  # fmt: skip
+EVENT: Topic[m.Event] = Topic(
+    "event", "ato/ob/{vehicle}/event", m.Event,
+    Direction.ONBOARD_TO_TRACKSIDE, Delivery.FIFO,
+)  # fmt: skip
+COMMAND: Topic[m.Command] = Topic(
+    "command", "ato/ob/{vehicle}/command", m.Command,
+    Direction.TRACKSIDE_TO_ONBOARD, Delivery.QUERY, reply_type=m.CommandAck,
+)  # fmt: skip
+JOURNEY_PROFILE: Topic[m.JourneyProfile] = Topic(
+    "journey_profile", "ato/ts/{vehicle}/journey_profile", m.JourneyProfile,
+    Direction.TRACKSIDE_TO_ONBOARD, Delivery.FIFO,
+)  # fmt: skip
+JOURNEY_PROFILE_ACK: Topic[m.JourneyProfileAck] = Topic(
+    "journey_profile_ack", "ato/ob/{vehicle}/journey_profile_ack", m.JourneyProfileAck,
+    Direction.ONBOARD_TO_TRACKSIDE, Delivery.FIFO,
+)  # fmt: skip
+SESSION: Topic[m.SessionRequest] = Topic(
+    "session", "ato/ts/session/{vehicle}", m.SessionRequest,
+    Direction.ONBOARD_TO_TRACKSIDE, Delivery.QUERY, reply_type=m.SessionResponse,
+)  # fmt: skip
+SESSION_TERMINATION: Topic[m.SessionTermination] = Topic(
+    "session_termination", "ato/session/{vehicle}/termination", m.SessionTermination,
+    Direction.ANY, Delivery.FIFO,
+)  # fmt: skip
+
+ALIVE_ONBOARD = "ato/alive/ob/{vehicle}"
+"""Liveliness token of an onboard process (CONTRACT.md §5)."""
+ALIVE_TRACKSIDE = "ato/alive/ts/{instance}"
+"""Liveliness token of a trackside instance (CONTRACT.md §5)."""
+
+TOPICS: tuple[Topic[Any], ...] = (
+    STATUS,
+    EVENT,
+    COMMAND,
+    JOURNEY_PROFILE,
+    JOURNEY_PROFILE_ACK,
+    SESSION,
+    SESSION_TERMINATION,
+)

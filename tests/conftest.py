@@ -1,0 +1,87 @@
+"""Shared fixtures: loopback Zenoh sessions and routers, databases (SQLite and PostgreSQL)."""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+import uuid
+from collections.abc import Callable, Iterator
+
+import pytest
+import zenoh
+from sqlalchemy import create_engine, text
+from sqlalchemy.engine import make_url
+
+from deploy.ports import loopback_endpoint
+from protocol import ZenohSettings, open_session
+from protocol.router import run_router
+
+WAIT_S = 5.0
+
+
+def wait_for(
+    predicate: Callable[[], bool], timeout_s: float = WAIT_S, step_s: float = 0.01
+) -> bool:
+    """Poll ``predicate`` until it holds or the timeout passes; returns whether it held."""
+    deadline = time.monotonic() + timeout_s
+    idle = threading.Event()
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        idle.wait(step_s)
+    return predicate()
+
+
+@pytest.fixture
+def zenoh_pair() -> Iterator[tuple[zenoh.Session, zenoh.Session]]:
+    """Two peer sessions in this process, the second connected to the first over loopback."""
+    endpoint = loopback_endpoint()
+    with open_session(ZenohSettings(mode="peer", connect=(), listen=(endpoint,))) as first:
+        with open_session(ZenohSettings(mode="peer", connect=(endpoint,))) as second:
+            assert wait_for(lambda: bool(first.info.peers_zid()))
+            yield first, second
+
+
+@pytest.fixture
+def router_endpoint() -> Iterator[str]:
+    """A Zenoh router running in this process on a free loopback port."""
+    endpoint = loopback_endpoint()
+    stop, ready = threading.Event(), threading.Event()
+    thread = threading.Thread(
+        target=run_router, args=(stop,), kwargs={"listen": [endpoint], "ready": ready}, daemon=True
+    )
+    thread.start()
+    assert ready.wait(WAIT_S)
+    yield endpoint
+    stop.set()
+    thread.join(WAIT_S)
+
+
+def _postgres_database() -> Iterator[str]:
+    base = os.environ.get("ATO_TEST_DATABASE_URL")
+    if not base:
+        pytest.skip("ATO_TEST_DATABASE_URL not set: no PostgreSQL for this run")
+    # A fresh schema per test keeps tests independent on one shared server.
+    schema = f"t_{uuid.uuid4().hex[:12]}"
+    admin = create_engine(base)
+    with admin.begin() as connection:
+        connection.execute(text(f'CREATE SCHEMA "{schema}"'))
+    url = make_url(base).update_query_dict({"options": f"-csearch_path={schema}"})
+    try:
+        yield url.render_as_string(hide_password=False)
+    finally:
+        with admin.begin() as connection:
+            connection.execute(text(f'DROP SCHEMA "{schema}" CASCADE'))
+        admin.dispose()
+
+
+@pytest.fixture(params=["sqlite", pytest.param("postgresql", marks=pytest.mark.postgres)])
+def database_url(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[str]:
+    """A database URL for each backend: an SQLite file, and PostgreSQL when configured."""
+    if request.param == "sqlite":
+        yield f"sqlite:///{tmp_path_factory.mktemp('db') / 'ato.db'}"
+    else:
+        yield from _postgres_database()

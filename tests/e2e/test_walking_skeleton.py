@@ -1,0 +1,126 @@
+"""Router + trackside + onboard, all real, in one process; then the CLI as child processes."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from fastapi.testclient import TestClient
+
+from deploy.processes import ato_command, child_process
+from onboard.node import OnboardNode, OnboardSettings
+from onboard.runtime import RealTimeClock
+from protocol import ZenohSettings, open_session, request
+from protocol import messages as m
+from protocol.registry import COMMAND
+from tests.conftest import wait_for
+from trackdb import TrackMap, load_seed_line
+from trackside.config import Settings
+from trackside.main import create_app
+
+pytestmark = pytest.mark.e2e
+
+ADMIN = ("admin", "e2e-password")
+
+
+@pytest.fixture
+def trackside(router_endpoint: str, tmp_path: Path) -> Iterator[tuple[TestClient, dict[str, str]]]:
+    settings = Settings(
+        database_url=f"sqlite:///{tmp_path / 'ts.db'}", zenoh_connect=(router_endpoint,),
+        admin_user=ADMIN[0], admin_password=ADMIN[1],  # type: ignore[arg-type]
+    )  # fmt: skip
+    with TestClient(create_app(settings)) as client:
+        response = client.post(
+            "/api/v1/auth/token", data=dict(zip(("username", "password"), ADMIN, strict=True))
+        )
+        yield client, {"Authorization": f"Bearer {response.json()['access_token']}"}
+
+
+def _vehicle(client: TestClient, headers: dict[str, str], vehicle: str) -> dict[str, object] | None:
+    for item in client.get("/api/v1/vehicles", headers=headers).json():
+        if item["id"] == vehicle:
+            return dict(item)
+    return None
+
+
+def test_vehicle_appears_then_is_reported_gone(
+    router_endpoint: str, trackside: tuple[TestClient, dict[str, str]]
+) -> None:
+    client, headers = trackside
+    track_map = TrackMap(load_seed_line("bologna-ring"))
+    with open_session(ZenohSettings(connect=(router_endpoint,))) as session:
+        node = OnboardNode(
+            OnboardSettings(vehicle_id="URV1"), session=session, clock=RealTimeClock(1.0),
+            track_map=track_map,
+        )  # fmt: skip
+        runner = threading.Thread(target=node.run, daemon=True)
+        started = time.monotonic()
+        runner.start()
+        assert wait_for(
+            lambda: (_vehicle(client, headers, "URV1") or {}).get("status") is not None, 2.0
+        )
+        appeared_s = time.monotonic() - started
+        item = _vehicle(client, headers, "URV1")
+        assert item is not None and item["alive"] is True
+
+        # Drive it, through the router, and see its status change.
+        ack = request(
+            session, COMMAND,
+            m.Command(vehicle_id="URV1", command_id=1, issued_by="e2e",
+                      body=m.RemoteDrivingTargetCommand(target_speed_mps=10.0)),
+            vehicle="URV1",
+        )  # fmt: skip
+        assert ack.accepted
+        assert wait_for(lambda: _speed(client, headers) > 0.1, 3.0)
+
+        node.stop()
+        runner.join(2.0)
+        node.close()
+        closed = time.monotonic()
+    assert wait_for(lambda: (_vehicle(client, headers, "URV1") or {}).get("alive") is False, 2.0)
+    gone_s = time.monotonic() - closed
+    assert appeared_s < 2.0 and gone_s < 2.0
+
+
+def _speed(client: TestClient, headers: dict[str, str]) -> float:
+    item = _vehicle(client, headers, "URV1") or {}
+    status = item.get("status")
+    return float(status["speed_mps"]) if isinstance(status, dict) else 0.0
+
+
+def test_cli_router_and_onboard_processes(
+    trackside: tuple[TestClient, dict[str, str]], router_endpoint: str, tmp_path: Path
+) -> None:
+    """``ato onboard`` as a child process joins through the test's router; killing it is seen."""
+    client, headers = trackside
+    args = ato_command("onboard", "--vehicle", "URV2", "--zenoh", router_endpoint, "--speed", "2")
+    with child_process(args, log_file=tmp_path / "onboard.log") as process:
+        assert wait_for(
+            lambda: (_vehicle(client, headers, "URV2") or {}).get("alive") is True, 30.0
+        )
+        process.terminate()
+        process.wait(10.0)
+        assert process.returncode == 0, (tmp_path / "onboard.log").read_text()
+    assert wait_for(lambda: (_vehicle(client, headers, "URV2") or {}).get("alive") is False, 2.0)
+
+
+def test_a_killed_process_is_noticed_within_the_lease(
+    trackside: tuple[TestClient, dict[str, str]], router_endpoint: str, tmp_path: Path
+) -> None:
+    """SIGKILL leaves no time to withdraw the token: the ≤ 1 s link lease must notice."""
+    client, headers = trackside
+    args = ato_command("onboard", "--vehicle", "URV3", "--zenoh", router_endpoint)
+    with child_process(args, log_file=tmp_path / "onboard.log") as process:
+        assert wait_for(
+            lambda: (_vehicle(client, headers, "URV3") or {}).get("alive") is True, 30.0
+        )
+        process.kill()
+        process.wait(10.0)
+        killed = time.monotonic()
+        assert wait_for(
+            lambda: (_vehicle(client, headers, "URV3") or {}).get("alive") is False, 3.0
+        )
+        assert time.monotonic() - killed < 2.0

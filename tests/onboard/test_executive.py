@@ -1,0 +1,157 @@
+"""The multi-rate executive: periods, phases, priority order, determinism, real-time measures."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+from onboard.runtime import Executive, RealTimeClock, SimClock
+from onboard.runtime.clock import NS_PER_S
+
+MS = 1_000_000
+
+
+def test_same_tick_releases_run_in_priority_order() -> None:
+    executive = Executive(SimClock(), record_trace=True)
+    order: list[str] = []
+    # Registered in the wrong order on purpose: B > C > A as in seed 004.
+    executive.add_task("A", lambda _t: order.append("A"), period_s=0.040, priority=1)
+    executive.add_task("C", lambda _t: order.append("C"), period_s=0.002, priority=2)
+    executive.add_task("B", lambda _t: order.append("B"), period_s=0.002, priority=3)
+    executive.run_until(40 * MS)
+    assert order[:3] == ["B", "C", "A"]
+    assert order[3:5] == ["B", "C"]
+    assert order[-3:] == ["B", "C", "A"]
+    assert executive.stats["B"].releases == 21
+    assert executive.stats["A"].releases == 2
+
+
+def test_equal_priorities_keep_registration_order() -> None:
+    executive = Executive(SimClock(), record_trace=True)
+    for name in ("first", "second", "third"):
+        executive.add_task(name, lambda _t: None, period_s=0.01)
+    executive.run_until(0)
+    assert executive.trace == [(0, "first"), (0, "second"), (0, "third")]
+
+
+def test_periods_and_phases() -> None:
+    executive = Executive(SimClock(), record_trace=True)
+    executive.add_task("fast", lambda _t: None, period_s=0.010)
+    executive.add_task("slow", lambda _t: None, period_s=0.025, phase_s=0.005)
+    executive.run_until(60 * MS)
+    assert executive.trace is not None
+    slow = [t for t, name in executive.trace if name == "slow"]
+    fast = [t for t, name in executive.trace if name == "fast"]
+    assert slow == [5 * MS, 30 * MS, 55 * MS]
+    assert fast == [k * 10 * MS for k in range(7)]
+    assert executive.clock.now_ns == 60 * MS
+
+
+def test_task_receives_its_release_time() -> None:
+    executive = Executive(SimClock())
+    seen: list[int] = []
+    executive.add_task("t", seen.append, period_s=0.1, phase_s=0.05)
+    executive.run_for(0.3)
+    assert seen == [50 * MS, 150 * MS, 250 * MS]
+
+
+def _lockstep_run() -> tuple[list[tuple[int, str]], list[float]]:
+    """A small closed loop: a plant integrating a controller's output at another rate."""
+    executive = Executive(SimClock(), record_trace=True)
+    state = {"x": 0.0, "v": 0.0, "u": 0.0}
+    outputs: list[float] = []
+
+    def plant(_t: int) -> None:
+        state["v"] += (state["u"] - 0.1 * state["v"]) * 0.003
+        state["x"] += state["v"] * 0.003
+
+    def controller(_t: int) -> None:
+        state["u"] = 2.0 * (10.0 - state["v"]) + 0.01 * (100.0 - state["x"])
+        outputs.append(state["x"])
+
+    executive.add_task("plant", plant, period_s=0.003, priority=2)
+    executive.add_task("controller", controller, period_s=0.1, phase_s=0.001, priority=1)
+    executive.run_for(20.0)
+    assert executive.trace is not None
+    return executive.trace, outputs
+
+
+def test_lockstep_runs_are_identical() -> None:
+    first_trace, first_outputs = _lockstep_run()
+    second_trace, second_outputs = _lockstep_run()
+    assert first_trace == second_trace
+    assert first_outputs == second_outputs  # bit for bit, not approximately
+    assert len(first_outputs) == 200
+
+
+def test_execution_time_is_recorded() -> None:
+    ticks = iter(range(0, 10**9, 7))  # each task body "takes" 7 ns
+    executive = Executive(SimClock(), perf_counter_ns=lambda: next(ticks))
+    executive.add_task("t", lambda _t: None, period_s=0.01)
+    executive.run_for(0.1)
+    stats = executive.stats["t"]
+    assert stats.releases == 11
+    assert stats.exec_max_ns == 7
+    assert stats.exec_mean_ns == pytest.approx(7.0)
+    assert stats.overruns == 0
+
+
+class FakeWall:
+    """A wall clock that only moves when told to, and when the clock 'sleeps'."""
+
+    def __init__(self) -> None:
+        self.ns = 1_000 * NS_PER_S
+
+    def __call__(self) -> int:
+        return self.ns
+
+
+def test_real_time_lateness_and_overruns() -> None:
+    wall = FakeWall()
+    clock = RealTimeClock(2.0, monotonic_ns=wall)
+    executive = Executive(clock, perf_counter_ns=wall)
+
+    def slow_body(_t: int) -> None:
+        wall.ns += 80 * MS  # longer than the 100 ms / ×2 = 50 ms wall period
+
+    executive.add_task("slow", slow_body, period_s=0.1)
+    executive.run_until(300 * MS)
+    stats = executive.stats["slow"]
+    assert stats.releases == 4
+    assert stats.overruns == 4
+    assert stats.lateness_max_ns > 0
+
+
+def test_real_time_clock_paces_releases() -> None:
+    clock = RealTimeClock(50.0)
+    executive = Executive(clock)
+    executive.add_task("t", lambda _t: None, period_s=0.1)
+    started = time.monotonic()
+    executive.run_for(2.0)  # 2 s of simulated time at ×50: at least 40 ms of wall time
+    assert time.monotonic() - started >= 2.0 / 50.0 - 1e-3
+    assert executive.stats["t"].releases == 21
+
+
+def test_stop_from_another_thread_ends_an_endless_run() -> None:
+    executive = Executive(RealTimeClock(1.0))
+    executive.add_task("t", lambda _t: None, period_s=0.05)
+    stopper = threading.Timer(0.2, executive.stop)
+    stopper.start()
+    executive.run_until(None)
+    assert executive.stopped
+    assert executive.stats["t"].releases >= 2
+
+
+@pytest.mark.parametrize("kwargs", [{"period_s": 0.0}, {"period_s": 0.1, "phase_s": -1.0}])
+def test_bad_task_parameters(kwargs: dict[str, float]) -> None:
+    with pytest.raises(ValueError):
+        Executive(SimClock()).add_task("t", lambda _t: None, **kwargs)
+
+
+def test_duplicate_task_name() -> None:
+    executive = Executive(SimClock())
+    executive.add_task("t", lambda _t: None, period_s=0.1)
+    with pytest.raises(ValueError):
+        executive.add_task("t", lambda _t: None, period_s=0.1)

@@ -1,0 +1,113 @@
+"""The onboard node over real Zenoh sessions, in lockstep."""
+
+from __future__ import annotations
+
+import pytest
+import zenoh
+
+from onboard.node import OnboardNode, OnboardSettings
+from onboard.runtime import SimClock
+from protocol import LivelinessWatcher, TypedSubscriber, request
+from protocol import messages as m
+from protocol.registry import COMMAND, EVENT, STATUS
+from tests.conftest import wait_for
+from trackdb import TrackMap, load_seed_line
+
+
+@pytest.fixture
+def node(zenoh_pair: tuple[zenoh.Session, zenoh.Session]):  # type: ignore[no-untyped-def]
+    _, onboard = zenoh_pair
+    node = OnboardNode(
+        OnboardSettings(vehicle_id="URV1"), session=onboard, clock=SimClock(),
+        track_map=TrackMap(load_seed_line("bologna-ring")),
+    )  # fmt: skip
+    yield node
+    node.close()
+
+
+def _command(body: object, command_id: int = 1) -> m.Command:
+    return m.Command(vehicle_id="URV1", command_id=command_id, issued_by="test", body=body)  # type: ignore[arg-type]
+
+
+def test_node_declares_liveliness_and_publishes_status(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session], node: OnboardNode
+) -> None:
+    trackside, _ = zenoh_pair
+    with (
+        LivelinessWatcher(trackside, "ato/alive/ob/*") as watcher,
+        TypedSubscriber(trackside, STATUS) as status,
+    ):
+        assert wait_for(lambda: watcher.alive() == {"ato/alive/ob/URV1"})
+        # Status is latest-value (dropped under congestion), so a burst of lockstep time is
+        # checked a second at a time: each second ends with the report of that instant.
+        for second in range(1, 11):
+            node.run(1.0)
+            assert wait_for(lambda s=second: _seq(status.latest("ato/ob/URV1/status")) == 5 * s)
+        latest = status.latest("ato/ob/URV1/status")
+        assert latest is not None
+        assert latest.sim_time_s == pytest.approx(10.0)
+        assert latest.ato_state is m.AtoState.NOT_AVAILABLE
+        assert latest.speed_mps == 0.0
+
+
+def test_remote_driving_command_moves_the_vehicle(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session], node: OnboardNode
+) -> None:
+    trackside, _ = zenoh_pair
+    events: list[m.Event] = []
+    with TypedSubscriber(trackside, EVENT, on_message=lambda _k, e: events.append(e)):
+        assert wait_for(lambda: _ping(trackside))
+        ack = request(
+            trackside,
+            COMMAND,
+            _command(m.RemoteDrivingTargetCommand(target_speed_mps=30 / 3.6), 7),
+            vehicle="URV1",
+        )
+        assert ack.accepted and ack.command_id == 7
+        node.run(90.0)
+        assert wait_for(lambda: any(e.code == "rd.target_speed" for e in events))
+    report = node.status(node.clock.now_ns)
+    assert report.sc_state is m.ScState.RD
+    assert report.speed_mps == pytest.approx(30 / 3.6, abs=0.3)
+    assert report.position_m > 300.0
+
+
+def _seq(report: m.StatusReport | None) -> int:
+    return -1 if report is None else report.seq
+
+
+def _ping(session: zenoh.Session) -> bool:
+    try:
+        return bool(
+            request(
+                session, COMMAND, _command(m.PingCommand(), 0), timeout_s=0.2, vehicle="URV1"
+            ).accepted
+        )
+    except Exception:
+        return False
+
+
+@pytest.mark.parametrize(
+    "body, reason",
+    [
+        (m.EngageCommand(), "no journey profile"),
+        (m.DisengageCommand(), "not engaged"),
+        (m.RemoteDrivingTargetCommand(target_speed_mps=50.0), "above line speed"),
+    ],
+)
+def test_commands_that_cannot_be_obeyed_are_refused_with_a_reason(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session], node: OnboardNode, body: object, reason: str
+) -> None:
+    trackside, _ = zenoh_pair
+    assert wait_for(lambda: _ping(trackside))
+    ack = request(trackside, COMMAND, _command(body), vehicle="URV1")
+    assert not ack.accepted
+    assert ack.reason is not None and reason in ack.reason
+    node.run(1.0)
+    assert node.sc_state is m.ScState.OFF
+
+
+def test_command_for_another_vehicle_is_refused(node: OnboardNode) -> None:
+    command = m.Command(vehicle_id="URV2", command_id=1, issued_by="t", body=m.PingCommand())
+    ack = node._on_command({"vehicle": "URV1"}, command)
+    assert not ack.accepted

@@ -1,0 +1,100 @@
+"""Point-mass plant physics and the remote-driving controller in closed loop."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from onboard.adf import RemoteDrivingController
+from onboard.plant import URV_PARAMETERS, PointMassModel
+from onboard.plant.point_mass import GRAVITY_MPS2
+
+P = URV_PARAMETERS
+M_EFF = P.mass_kg * (1 + P.rotating_mass_factor)
+
+
+def _settle(model: PointMassModel, force: float, seconds: float) -> None:
+    for _ in range(round(seconds / 0.01)):
+        model.step(0.01, force)
+
+
+def test_starting_acceleration_is_force_over_effective_mass() -> None:
+    model = PointMassModel()
+    model.applied_force_n = 10_000.0  # actuator already at the demand
+    model.step(0.001, 10_000.0)
+    expected = (10_000.0 - P.davis_a_n) / M_EFF
+    assert model.acceleration_mps2 == pytest.approx(expected, rel=1e-9)
+
+
+def test_traction_envelope() -> None:
+    model = PointMassModel()
+    assert model.force_limits_n(0.0) == (-P.max_brake_force_n, P.max_traction_force_n)
+    low, high = model.force_limits_n(50.0)
+    assert high == pytest.approx(P.max_traction_power_w / 50.0)
+
+
+def test_resistance_terms() -> None:
+    model = PointMassModel()
+    v = 20.0
+    davis = P.davis_a_n + P.davis_b_n_per_mps * v + P.davis_c_n_per_mps2 * v**2
+    assert model.resistance_n(v, 0.0, math.inf) == pytest.approx(davis)
+    grade = P.mass_kg * GRAVITY_MPS2 * math.sin(math.atan(0.010))
+    assert model.resistance_n(v, 10.0, math.inf) == pytest.approx(davis + grade)
+    curve = P.mass_kg * GRAVITY_MPS2 * 800.0 / 400.0 / 1000.0
+    assert model.resistance_n(v, 0.0, 400.0) == pytest.approx(davis + curve)
+
+
+def test_constant_force_reaches_the_balancing_speed() -> None:
+    model = PointMassModel()
+    force = 2_000.0
+    _settle(model, force, 2000.0)
+    balance = (
+        P.davis_a_n
+        + P.davis_b_n_per_mps * model.speed_mps
+        + P.davis_c_n_per_mps2 * model.speed_mps**2
+    )
+    assert balance == pytest.approx(force, rel=1e-3)
+
+
+def test_braking_stops_and_holds_the_vehicle() -> None:
+    model = PointMassModel(speed_mps=10.0)
+    _settle(model, -P.max_brake_force_n, 30.0)
+    assert model.speed_mps == 0.0
+    position = model.position_m
+    for _ in range(100):
+        model.step(0.01, 0.0, gradient_permille=20.0)  # uphill, no traction: held, no roll-back
+    assert model.speed_mps == 0.0
+    assert model.position_m == position
+
+
+def test_rd_controller_tracks_a_target_speed_uphill() -> None:
+    model = PointMassModel()
+    controller = RemoteDrivingController(
+        mass_kg=P.mass_kg, rolling_coefficient=P.davis_a_n / (P.mass_kg * GRAVITY_MPS2)
+    )
+    target = 30 / 3.6
+    demand = 0.0
+    for step in range(12_000):  # 120 s at 10 ms, controller at 100 ms
+        if step % 10 == 0:
+            demand = controller.step(
+                0.1, target_speed_mps=target, speed_mps=model.speed_mps, gradient_permille=4.0,
+                force_limits_n=model.force_limits_n(model.speed_mps),
+            )  # fmt: skip
+        model.step(0.01, demand, gradient_permille=4.0)
+    assert model.speed_mps == pytest.approx(target, abs=0.05)
+
+
+def test_rd_controller_brings_the_vehicle_to_a_stop() -> None:
+    model = PointMassModel(speed_mps=8.0)
+    controller = RemoteDrivingController(mass_kg=P.mass_kg, rolling_coefficient=0.002)
+    controller.reset(8.0)
+    demand = 0.0
+    for step in range(6_000):
+        if step % 10 == 0:
+            demand = controller.step(
+                0.1, target_speed_mps=0.0, speed_mps=model.speed_mps, gradient_permille=0.0,
+                force_limits_n=model.force_limits_n(model.speed_mps),
+            )  # fmt: skip
+        model.step(0.01, demand)
+    assert model.speed_mps == 0.0

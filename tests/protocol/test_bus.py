@@ -1,0 +1,168 @@
+"""Typed pub/sub, query/reply and liveliness over real Zenoh sessions on loopback."""
+
+from __future__ import annotations
+
+import threading
+
+import pytest
+import zenoh
+
+from protocol import (
+    LivelinessWatcher,
+    PayloadError,
+    RequestTimeoutError,
+    TopicMonitor,
+    TypedPublisher,
+    TypedQueryable,
+    TypedSubscriber,
+    declare_liveliness,
+    request,
+)
+from protocol import messages as m
+from protocol.registry import COMMAND, EVENT, STATUS
+from tests.conftest import wait_for
+
+
+def _status(seq: int, vehicle: str = "URV1") -> m.StatusReport:
+    return m.StatusReport(
+        vehicle_id=vehicle, seq=seq, sim_time_s=seq * 0.2, line_id="bologna-ring",
+        position_m=float(seq), speed_mps=1.0, acceleration_mps2=0.0, traction_force_n=0.0,
+        ato_state=m.AtoState.NOT_AVAILABLE, etcs_mode=m.EtcsMode.SR, sc_state=m.ScState.OFF,
+    )  # fmt: skip
+
+
+def test_pub_sub_between_two_sessions(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> None:
+    trackside, onboard = zenoh_pair
+    with TypedSubscriber(trackside, STATUS) as subscriber:
+        with TypedPublisher(onboard, STATUS, vehicle="URV1") as publisher:
+            assert wait_for(lambda: (publisher.put(_status(0)), subscriber.stats.received > 0)[1])
+            publisher.put(_status(7))
+            assert wait_for(
+                lambda: (subscriber.latest("ato/ob/URV1/status") or _status(0)).seq == 7
+            )
+    assert subscriber.stats.bad_payloads == 0
+
+
+def test_fifo_keeps_every_message_in_order(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> None:
+    trackside, onboard = zenoh_pair
+    received: list[int] = []
+    with TypedSubscriber(trackside, EVENT, on_message=lambda _k, e: received.append(e.seq)):
+        with TypedPublisher(onboard, EVENT, vehicle="URV1") as publisher:
+            ping = m.Event(
+                vehicle_id="URV1", seq=10**6, sim_time_s=0, severity="info", code="x", text=""
+            )
+            assert wait_for(lambda: (publisher.put(ping), bool(received))[1])
+            received.clear()
+            for seq in range(200):
+                publisher.put(
+                    m.Event(
+                        vehicle_id="URV1", seq=seq, sim_time_s=0, severity="info", code="x", text=""
+                    )
+                )
+            assert wait_for(lambda: len([s for s in received if s < 10**6]) == 200)
+    assert [s for s in received if s < 10**6] == list(range(200))
+
+
+def test_bad_payloads_are_counted_not_raised(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    trackside, onboard = zenoh_pair
+    with TypedSubscriber(trackside, STATUS) as subscriber:
+        for payload in (b"garbage", b'{"vehicle_id": "URV1"}', b"\xff" * 10):
+            assert wait_for(
+                lambda p=payload: (
+                    onboard.put("ato/ob/URV1/status", p),
+                    subscriber.stats.bad_payloads > 0,
+                )[1]
+            )
+        onboard.put("ato/ob/URV1/status", STATUS.encode(_status(3)))
+        assert wait_for(lambda: subscriber.stats.received == 1)
+        assert subscriber.stats.last_error is not None
+
+
+def test_query_reply(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> None:
+    trackside, onboard = zenoh_pair
+
+    def answer(chunks: dict[str, str], command: m.Command) -> m.CommandAck:
+        return m.CommandAck(
+            vehicle_id=chunks["vehicle"],
+            command_id=command.command_id,
+            accepted=True,
+            sim_time_s=1.5,
+        )
+
+    command = m.Command(vehicle_id="URV1", command_id=41, issued_by="t", body=m.PingCommand())
+    with TypedQueryable(onboard, COMMAND, answer, vehicle="URV1") as queryable:
+        assert wait_for(lambda: _try_request(trackside, command) is not None)
+        ack = request(trackside, COMMAND, command, vehicle="URV1")
+        assert ack == m.CommandAck(vehicle_id="URV1", command_id=41, accepted=True, sim_time_s=1.5)
+        # A malformed request gets an error reply, counted by the queryable.
+        replies = list(trackside.get("ato/ob/URV1/command", payload=b"{}", timeout=2.0))
+        assert replies and replies[0].err is not None
+        assert queryable.stats.bad_payloads == 1
+
+
+def _try_request(session: zenoh.Session, command: m.Command) -> m.CommandAck | None:
+    try:
+        ack: m.CommandAck = request(session, COMMAND, command, timeout_s=0.2, vehicle="URV1")
+    except (RequestTimeoutError, PayloadError):
+        return None
+    return ack
+
+
+def test_request_without_replier_times_out(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> None:
+    trackside, _ = zenoh_pair
+    command = m.Command(vehicle_id="NOBODY", command_id=0, issued_by="t", body=m.PingCommand())
+    with pytest.raises(RequestTimeoutError):
+        request(trackside, COMMAND, command, timeout_s=0.3, vehicle="NOBODY")
+
+
+def test_liveliness_appears_and_disappears(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> None:
+    trackside, onboard = zenoh_pair
+    changes: list[tuple[str, bool]] = []
+    seen = threading.Event()
+    with LivelinessWatcher(
+        trackside, "ato/alive/ob/*", lambda k, up: (changes.append((k, up)), seen.set())
+    ) as watcher:
+        token = declare_liveliness(onboard, "ato/alive/ob/URV9")
+        assert wait_for(lambda: watcher.alive() == {"ato/alive/ob/URV9"})
+        token.undeclare()
+        assert wait_for(lambda: watcher.alive() == set())
+    assert changes == [("ato/alive/ob/URV9", True), ("ato/alive/ob/URV9", False)]
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+def test_monitor_alive_and_rate() -> None:
+    clock = FakeClock()
+    monitor = TopicMonitor(5.0, clock)
+    key = "ato/ob/URV1/status"
+    assert not monitor.alive(key)
+    for _ in range(26):
+        monitor.record(key)
+        clock.now += 0.2
+    assert monitor.alive(key)
+    assert monitor.rate_hz(key) == pytest.approx(5.0)
+    assert monitor.rate_ok(key)
+    clock.now += 0.2  # 0.4 s since the last: within 2.5 periods (0.5 s)
+    assert monitor.alive(key)
+    clock.now += 0.2
+    assert not monitor.alive(key)
+    assert not monitor.rate_ok(key)
+
+
+def test_monitor_flags_a_slow_publisher() -> None:
+    clock = FakeClock()
+    monitor = TopicMonitor(5.0, clock)
+    for _ in range(10):
+        monitor.record("k")
+        clock.now += 0.4  # 2.5 Hz, still within the alive window
+    clock.now -= 0.3
+    assert monitor.alive("k")
+    assert not monitor.rate_ok("k")

@@ -1,0 +1,110 @@
+"""Authentication and roles (CONTRACT.md §2), on SQLite and PostgreSQL."""
+
+from __future__ import annotations
+
+import pytest
+from fastapi.testclient import TestClient
+from sqlalchemy import create_engine, text
+
+from tests.trackside.conftest import ADMIN, MakeClient, login
+
+
+def test_token_for_the_bootstrapped_admin(client: TestClient) -> None:
+    response = client.post("/api/v1/auth/token", data={"username": ADMIN[0], "password": ADMIN[1]})
+    assert response.status_code == 200
+    body = response.json()
+    assert body["token_type"] == "bearer"
+    assert len(body["access_token"]) >= 32
+
+
+@pytest.mark.parametrize("username, password", [(ADMIN[0], "wrong"), ("nobody", "whatever")])
+def test_wrong_credentials_are_401(client: TestClient, username: str, password: str) -> None:
+    response = client.post("/api/v1/auth/token", data={"username": username, "password": password})
+    assert response.status_code == 401
+
+
+@pytest.mark.parametrize("path", ["/api/v1/vehicles", "/api/v1/vehicles/URV1", "/api/v1/users/me"])
+def test_routes_need_a_token(client: TestClient, path: str) -> None:
+    assert client.get(path).status_code == 401
+    assert client.get(path, headers={"Authorization": "Bearer not-a-token"}).status_code == 401
+
+
+def test_role_too_low_is_403(client: TestClient, admin_headers: dict[str, str]) -> None:
+    created = client.post(
+        "/api/v1/users", headers=admin_headers,
+        json={"username": "olga", "password": "observer-pw", "role": "observer"},
+    )  # fmt: skip
+    assert created.status_code == 201
+    observer = login(client, "olga", "observer-pw")
+    assert client.get("/api/v1/users/me", headers=observer).json() == {
+        "username": "olga",
+        "role": "observer",
+    }
+    assert client.get("/api/v1/vehicles", headers=observer).status_code == 200
+    forbidden = client.post(
+        "/api/v1/users", headers=observer,
+        json={"username": "eve", "password": "password-x", "role": "admin"},
+    )  # fmt: skip
+    assert forbidden.status_code == 403
+
+
+def test_duplicate_user_is_409_and_bad_body_422(
+    client: TestClient, admin_headers: dict[str, str]
+) -> None:
+    body = {"username": "dan", "password": "driver-pw", "role": "driver"}
+    assert client.post("/api/v1/users", headers=admin_headers, json=body).status_code == 201
+    assert client.post("/api/v1/users", headers=admin_headers, json=body).status_code == 409
+    bad = body | {"role": "emperor"}
+    assert client.post("/api/v1/users", headers=admin_headers, json=bad).status_code == 422
+
+
+def test_admin_from_environment(
+    make_client: MakeClient, monkeypatch: pytest.MonkeyPatch, database_url: str
+) -> None:
+    monkeypatch.setenv("ATO_ADMIN_USER", "envadmin")
+    monkeypatch.setenv("ATO_ADMIN_PASSWORD", "from-the-env")
+    from trackside.config import Settings
+
+    settings = Settings(database_url=database_url)
+    assert settings.admin_user == "envadmin"
+    client = make_client(admin_user=settings.admin_user, admin_password=settings.admin_password)
+    headers = login(client, "envadmin", "from-the-env")
+    assert client.get("/api/v1/users/me", headers=headers).json()["role"] == "admin"
+
+
+def test_no_admin_without_settings(make_client: MakeClient) -> None:
+    client = make_client(admin_user=None, admin_password=None)
+    response = client.post("/api/v1/auth/token", data={"username": ADMIN[0], "password": ADMIN[1]})
+    assert response.status_code == 401
+
+
+def test_expired_token_is_401(make_client: MakeClient) -> None:
+    client = make_client(token_ttl_s=1e-6)
+    headers = login(client, *ADMIN)
+    assert client.get("/api/v1/users/me", headers=headers).status_code == 401
+
+
+def test_passwords_and_tokens_are_not_stored_in_clear(
+    client: TestClient, database_url: str
+) -> None:
+    headers = login(client, *ADMIN)
+    token = headers["Authorization"].split()[1]
+    engine = create_engine(database_url.replace("postgresql+psycopg", "postgresql+psycopg"))
+    with engine.connect() as connection:
+        stored_hash = connection.execute(text("SELECT password_hash FROM users")).scalar_one()
+        token_hashes = connection.execute(text("SELECT token_hash FROM api_tokens")).scalars().all()
+    engine.dispose()
+    assert stored_hash.startswith("scrypt$") and ADMIN[1] not in stored_hash
+    assert token not in token_hashes and len(token_hashes) == 1
+
+
+def test_openapi_describes_every_route(client: TestClient) -> None:
+    paths = client.get("/openapi.json").json()["paths"]
+    for path in (
+        "/api/v1/auth/token",
+        "/api/v1/vehicles",
+        "/api/v1/vehicles/{vehicle_id}",
+        "/api/v1/users",
+        "/api/v1/users/me",
+    ):
+        assert path in paths

@@ -1,0 +1,113 @@
+"""Vehicles from liveliness and status, over REST and WebSocket."""
+
+from __future__ import annotations
+
+import pytest
+import zenoh
+from fastapi.testclient import TestClient
+from starlette.websockets import WebSocketDisconnect
+
+from protocol import TypedPublisher, declare_liveliness
+from protocol import messages as m
+from protocol.registry import STATUS
+from tests.conftest import wait_for
+
+
+def _status(vehicle: str, position_m: float) -> m.StatusReport:
+    return m.StatusReport(
+        vehicle_id=vehicle, seq=0, sim_time_s=1.0, line_id="bologna-ring", position_m=position_m,
+        speed_mps=4.0, acceleration_mps2=0.1, traction_force_n=500.0,
+        ato_state=m.AtoState.NOT_AVAILABLE, etcs_mode=m.EtcsMode.SR, sc_state=m.ScState.RD,
+    )  # fmt: skip
+
+
+def _vehicles(client: TestClient, headers: dict[str, str]) -> dict[str, dict[str, object]]:
+    response = client.get("/api/v1/vehicles", headers=headers)
+    assert response.status_code == 200
+    return {item["id"]: item for item in response.json()}
+
+
+@pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
+def test_vehicle_alive_with_status_then_not_alive(
+    client: TestClient,
+    admin_headers: dict[str, str],
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    _, onboard = zenoh_pair
+    assert _vehicles(client, admin_headers) == {}
+    token = declare_liveliness(onboard, "ato/alive/ob/URV7")
+    with TypedPublisher(onboard, STATUS, vehicle="URV7") as publisher:
+
+        def has_status() -> bool:
+            publisher.put(_status("URV7", 123.5))
+            return _vehicles(client, admin_headers).get("URV7", {}).get("status") is not None
+
+        assert wait_for(has_status)
+    item = _vehicles(client, admin_headers)["URV7"]
+    assert item["alive"] is True
+    status = item["status"]
+    assert isinstance(status, dict)
+    assert status["position_m"] == 123.5
+    assert status["speed_mps"] == 4.0
+    assert (status["ato_state"], status["etcs_mode"], status["sc_state"]) == ("NA", "SR", "RD")
+    one = client.get("/api/v1/vehicles/URV7", headers=admin_headers).json()
+    assert one["id"] == "URV7"
+
+    token.undeclare()
+    assert wait_for(lambda: _vehicles(client, admin_headers)["URV7"]["alive"] is False)
+    assert _vehicles(client, admin_headers)["URV7"]["status"] is None
+
+
+@pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
+def test_status_under_another_vehicles_key_is_not_shown(
+    client: TestClient,
+    admin_headers: dict[str, str],
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    _, onboard = zenoh_pair
+    token = declare_liveliness(onboard, "ato/alive/ob/URV8")
+    assert wait_for(lambda: "URV8" in _vehicles(client, admin_headers))
+    with TypedPublisher(onboard, STATUS, vehicle="URV8") as publisher:
+        publisher.put(_status("IMPOSTOR", 1.0))
+        onboard.put("ato/ob/URV8/status", b"not json")
+        assert wait_for(lambda: client.app.state.bridge.status_stats.bad_payloads >= 1)  # type: ignore[attr-defined]
+    assert _vehicles(client, admin_headers)["URV8"]["status"] is None
+    token.undeclare()
+
+
+@pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
+def test_unknown_vehicle_is_404(client: TestClient, admin_headers: dict[str, str]) -> None:
+    assert client.get("/api/v1/vehicles/NOPE", headers=admin_headers).status_code == 404
+
+
+@pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
+def test_fleet_websocket_pushes_live_vehicles(
+    client: TestClient,
+    admin_headers: dict[str, str],
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    _, onboard = zenoh_pair
+    token = declare_liveliness(onboard, "ato/alive/ob/URV5")
+    bearer = admin_headers["Authorization"].split()[1]
+    with TypedPublisher(onboard, STATUS, vehicle="URV5") as publisher:
+        with client.websocket_connect(f"/api/v1/ws/fleet?token={bearer}") as websocket:
+            positions: list[float] = []
+            for frame_index in range(40):
+                publisher.put(_status("URV5", 10.0 * frame_index))
+                frame = websocket.receive_json()
+                assert frame["type"] == "fleet"
+                vehicles = {v["id"]: v for v in frame["vehicles"]}
+                if vehicles.get("URV5", {}).get("status"):
+                    positions.append(vehicles["URV5"]["status"]["position_m"])
+                if len(set(positions)) >= 2:
+                    break
+    assert len(set(positions)) >= 2, positions
+    token.undeclare()
+
+
+@pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
+def test_fleet_websocket_refuses_a_bad_token(client: TestClient) -> None:
+    with pytest.raises(WebSocketDisconnect) as caught:
+        with client.websocket_connect("/api/v1/ws/fleet?token=wrong") as websocket:
+            websocket.receive_json()
+    assert caught.value.code == 1008

@@ -1,0 +1,1 @@
+"""HTTP and WebSocket layer: the only place that knows about status codes."""

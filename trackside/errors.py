@@ -1,0 +1,40 @@
+"""Domain errors raised by the trackside services; only the routes turn them into HTTP.
+
+::
+
+    TracksideError (Exception)
+    ├── AuthenticationError      bad credentials or token
+    ├── PermissionDeniedError    role too low for the action
+    ├── NotFoundError (LookupError)
+    └── ConflictError            the resource exists or is held by someone else
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "AuthenticationError",
+    "ConflictError",
+    "NotFoundError",
+    "PermissionDeniedError",
+    "TracksideError",
+]
+
+
+class TracksideError(Exception):
+    """Base of the trackside's domain errors."""
+
+
+class AuthenticationError(TracksideError):
+    """Credentials or token not valid."""
+
+
+class PermissionDeniedError(TracksideError):
+    """The user's role does not allow the action."""
+
+
+class NotFoundError(TracksideError, LookupError):
+    """No such resource."""
+
+
+class ConflictError(TracksideError):
+    """The resource already exists or is held by another user."""

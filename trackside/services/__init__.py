@@ -1,0 +1,1 @@
+"""Trackside services: domain rules over persistence, raising :mod:`trackside.errors`."""

@@ -1,0 +1,101 @@
+"""Users, roles and bearer tokens."""
+
+from __future__ import annotations
+
+from datetime import UTC, datetime, timedelta
+
+from sqlalchemy import select
+from sqlalchemy.exc import IntegrityError
+from sqlalchemy.orm import Session
+
+from trackside.errors import AuthenticationError, ConflictError, PermissionDeniedError
+from trackside.models import ApiToken, Role, User
+from trackside.security import hash_password, new_token, token_digest, verify_password
+
+__all__ = [
+    "authenticate",
+    "create_user",
+    "ensure_user",
+    "issue_token",
+    "require_role",
+    "resolve_token",
+    "revoke_token",
+]
+
+_DUMMY_HASH = hash_password("timing-equaliser")
+
+
+def _now() -> datetime:
+    return datetime.now(UTC)
+
+
+def create_user(db: Session, username: str, password: str, role: Role) -> User:
+    if not username or len(username) > 64:
+        raise ValueError("username must have 1 to 64 characters")
+    if len(password) < 4:
+        raise ValueError("password must have at least 4 characters")
+    user = User(
+        username=username, password_hash=hash_password(password), role=role.value,
+        created_at=_now(),
+    )  # fmt: skip
+    db.add(user)
+    try:
+        db.flush()
+    except IntegrityError as exc:
+        db.rollback()
+        raise ConflictError(f"user {username!r} exists") from exc
+    return user
+
+
+def ensure_user(db: Session, username: str, password: str, role: Role) -> User:
+    """The user of that name, created with this password and role if missing."""
+    existing = db.scalar(select(User).where(User.username == username))
+    return existing if existing is not None else create_user(db, username, password, role)
+
+
+def authenticate(db: Session, username: str, password: str) -> User:
+    user = db.scalar(select(User).where(User.username == username))
+    if user is None:
+        verify_password(password, _DUMMY_HASH)  # same cost whether or not the user exists
+        raise AuthenticationError("wrong username or password")
+    if not verify_password(password, user.password_hash):
+        raise AuthenticationError("wrong username or password")
+    return user
+
+
+def issue_token(db: Session, user: User, ttl_s: float) -> str:
+    token = new_token()
+    issued = _now()
+    db.add(
+        ApiToken(
+            token_hash=token_digest(token), user_id=user.id, issued_at=issued,
+            expires_at=issued + timedelta(seconds=ttl_s), revoked=False,
+        )
+    )  # fmt: skip
+    db.flush()
+    return token
+
+
+def resolve_token(db: Session, token: str) -> User:
+    row = db.scalar(select(ApiToken).where(ApiToken.token_hash == token_digest(token)))
+    if row is None or row.revoked:
+        raise AuthenticationError("unknown or revoked token")
+    expires = row.expires_at if row.expires_at.tzinfo else row.expires_at.replace(tzinfo=UTC)
+    if expires <= _now():
+        raise AuthenticationError("token expired")
+    user = db.get(User, row.user_id)
+    if user is None:
+        raise AuthenticationError("token of a deleted user")
+    return user
+
+
+def revoke_token(db: Session, token: str) -> None:
+    row = db.scalar(select(ApiToken).where(ApiToken.token_hash == token_digest(token)))
+    if row is not None:
+        row.revoked = True
+        db.flush()
+
+
+def require_role(user: User, role: Role) -> None:
+    if Role(user.role).rank < role.rank:
+        raise PermissionDeniedError(f"{role.value} role needed, {user.username} is {user.role}")
