@@ -176,6 +176,11 @@ class OnboardNode:
         self._status.put(self.status(now_ns))
         self._status_seq += 1
 
+    @property
+    def reports_sent(self) -> int:
+        """Status reports published so far (the next report's ``seq``)."""
+        return self._status_seq
+
     # -- state ---------------------------------------------------------------------------------
 
     def status(self, now_ns: int) -> m.StatusReport:

@@ -136,7 +136,9 @@ class TypedPublisher(Generic[T]):
                     zenoh.CongestionControl.DROP if latest else zenoh.CongestionControl.BLOCK
                 ),
                 reliability=zenoh.Reliability.RELIABLE,
-                express=latest,
+                # Not express: express messages each take a whole batch of the transmission
+                # queue, so a lockstep burst of a few reports overflows it and DROP loses them.
+                express=False,
             )
         except zenoh.ZError as exc:
             raise TransportError(f"cannot declare publisher {self.key}: {exc}") from exc

@@ -38,14 +38,21 @@ def test_node_declares_liveliness_and_publishes_status(
         TypedSubscriber(trackside, STATUS) as status,
     ):
         assert wait_for(lambda: watcher.alive() == {"ato/alive/ob/URV1"})
-        # Status is latest-value (dropped under congestion), so a burst of lockstep time is
-        # checked a second at a time: each second ends with the report of that instant.
+        # A new subscription takes some milliseconds to reach the publisher: run until the
+        # first report arrives, then check each following second of lockstep time. Status is
+        # latest-value (dropped under congestion), so a burst is checked a second at a time.
+        assert wait_for(lambda: (node.run(0.2), status.stats.received > 0)[1])
+        first = node.reports_sent
         for second in range(1, 11):
             node.run(1.0)
-            assert wait_for(lambda s=second: _seq(status.latest("ato/ob/URV1/status")) == 5 * s)
+            assert node.reports_sent == first + 5 * second  # 5 Hz of simulated time
+            assert wait_for(
+                lambda: _seq(status.latest("ato/ob/URV1/status")) == node.reports_sent - 1
+            ), (second, _seq(status.latest("ato/ob/URV1/status")), node.reports_sent, status.stats)
+        end_s = node.clock.now_s
         latest = status.latest("ato/ob/URV1/status")
         assert latest is not None
-        assert latest.sim_time_s == pytest.approx(10.0)
+        assert latest.sim_time_s == pytest.approx(end_s)
         assert latest.ato_state is m.AtoState.NOT_AVAILABLE
         assert latest.speed_mps == 0.0
 
