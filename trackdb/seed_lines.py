@@ -1,57 +1,122 @@
-"""The lines shipped with ``ato``. Synthetic, but physically plausible.
+"""The lines shipped with ``ato``: synthetic, but physically plausible.
 
-``bologna-ring`` follows the field test of seed 000: a ring of about 5.7 km, ETCS Level 1, three
-stopping points, line speed above the journey's 40 km/h cap. Its gradients, curves and speeds are
-invented for the emulation (the seed gives none); they stay within what a test circuit has.
+- ``bologna-ring``: the test ring of the seed 000 field test. About 5.7 km, ETCS Level 1: a
+  rounded rectangle (two 1100 m and two 493 m straights, four quarter circles of 400 m radius,
+  turning left), gentle gradients that close in altitude, line speed 80 km/h on the straights and
+  60 km/h in the curves (so the journey's 40 km/h cap is the operator's choice), three stopping
+  points, and four balise groups whose movement authorities let a train run round the ring; the
+  first, 150 m from the origin, is the one that brings Full Supervision.
+- ``milano-bologna``: a high-speed line of 200 km for the seed 003 mission, ETCS Level 2:
+  300 km/h with 120–250 km/h sections near the ends and at a junction, large-radius curves,
+  gradients within ±12 ‰, stations at both ends and four intermediate stopping points, a balise
+  group every 5 km as location reference.
+
+The seeds give no line data: the geometry, speeds and gradients are invented to fit what they
+describe; the geodetic polylines start near Bologna and Milano.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
-from trackdb.schema import Line, ProfileSection, StoppingPoint
+from trackdb.builder import LineBuilder
+from trackdb.schema import Line
 
-__all__ = ["SEED_LINES", "load_seed_line"]
+__all__ = ["SEED_LINES", "bologna_ring", "load_seed_line", "milano_bologna"]
 
-KMH = 1.0 / 3.6
-
-
-def _sections(edges: list[float], values: list[float]) -> tuple[ProfileSection, ...]:
-    return tuple(
-        ProfileSection(start_m=start, end_m=end, value=value)
-        for start, end, value in zip(edges[:-1], edges[1:], values, strict=True)
-    )
+RING_RADIUS_M = 400.0
+RING_LONG_STRAIGHT_M = 1100.0
+RING_LENGTH_M = 5700.0
 
 
 def bologna_ring() -> Line:
-    length_m = 5700.0
-    return Line(
-        id="bologna-ring",
-        name="Bologna test ring (synthetic)",
-        length_m=length_m,
-        ring=True,
-        gradient_permille=_sections(
-            [0.0, 600.0, 1500.0, 2200.0, 3100.0, 3900.0, 4800.0, length_m],
-            [0.0, 4.0, 1.5, -3.0, 0.0, -2.5, 2.0],
-        ),
-        curve_radius_m=(
-            ProfileSection(start_m=900.0, end_m=1400.0, value=450.0),
-            ProfileSection(start_m=2700.0, end_m=3300.0, value=380.0),
-            ProfileSection(start_m=4900.0, end_m=5500.0, value=500.0),
-        ),
-        speed_limit_mps=_sections(
-            [0.0, 900.0, 1400.0, 2700.0, 3300.0, 4900.0, 5500.0, length_m],
-            [v * KMH for v in (80.0, 60.0, 80.0, 55.0, 80.0, 60.0, 80.0)],
-        ),
-        stopping_points=(
-            StoppingPoint(id="north", name="North platform", position_m=450.0),
-            StoppingPoint(id="east", name="East platform", position_m=2250.0),
-            StoppingPoint(id="south", name="South platform", position_m=4150.0),
-        ),
+    quarter = RING_RADIUS_M * math.pi / 2.0
+    short = (RING_LENGTH_M - 2 * RING_LONG_STRAIGHT_M - 4 * quarter) / 2.0
+    # Altitude gained on the straights is lost in the last curve, so the ring closes.
+    closing_gradient = -(short * 1.0) / quarter
+    builder = LineBuilder(
+        id="bologna-ring", name="Bologna test ring (synthetic)", ring=True, etcs_level=1,
+        origin_lat_deg=44.5120, origin_lon_deg=11.3180, origin_alt_m=42.0, heading_deg=0.0,
+    )  # fmt: skip
+    (
+        builder.straight(RING_LONG_STRAIGHT_M, speed_kmh=80, gradient_permille=2.0)
+        .curve(quarter, RING_RADIUS_M, speed_kmh=60, gradient_permille=1.0)
+        .straight(short, speed_kmh=80, gradient_permille=0.0)
+        .curve(quarter, RING_RADIUS_M, speed_kmh=60, gradient_permille=-1.0)
+        .straight(RING_LONG_STRAIGHT_M, speed_kmh=80, gradient_permille=-2.0)
+        .curve(quarter, RING_RADIUS_M, speed_kmh=60, gradient_permille=0.0)
+        .straight(short, speed_kmh=80, gradient_permille=1.0)
+        .curve(quarter, RING_RADIUS_M, speed_kmh=60, gradient_permille=closing_gradient)
     )
+    builder.stopping_point("north", "North platform", 550.0)
+    builder.stopping_point("east", "East platform", 1100.0 + quarter + short / 2.0)
+    builder.stopping_point("south", "South platform", 1100.0 + 2 * quarter + short + 550.0)
+    groups = (101, 150.0), (102, 1800.0), (103, 2950.0), (104, 4650.0)
+    for index, (group_id, position) in enumerate(groups):
+        after_next = groups[(index + 2) % len(groups)][1]
+        authority = (after_next - position) % RING_LENGTH_M
+        builder.balise_group(group_id, position, authority_m=authority)
+    return builder.build(geodetic_step_m=10.0)
 
 
-SEED_LINES: dict[str, Callable[[], Line]] = {"bologna-ring": bologna_ring}
+MILANO_BOLOGNA_LENGTH_M = 200_000.0
+
+
+def milano_bologna() -> Line:
+    builder = LineBuilder(
+        id="milano-bologna", name="Milano – Bologna high-speed line (synthetic)", ring=False,
+        etcs_level=2, origin_lat_deg=45.4340, origin_lon_deg=9.2380, origin_alt_m=105.0,
+        heading_deg=-43.5,
+    )  # fmt: skip
+    # (length [m], radius [m] or None, speed [km/h], gradient [‰])
+    walk: list[tuple[float, float | None, float, float]] = [
+        (4_000, None, 120, 0.0),
+        (6_000, None, 200, -2.0),
+        (12_000, None, 300, -1.0),
+        (3_000, 6_000, 300, 0.0),
+        (20_000, None, 300, 1.5),
+        (5_000, None, 300, 12.0),
+        (5_000, None, 300, -12.0),
+        (3_000, -6_500, 300, 0.0),
+        (22_000, None, 300, -1.0),
+        (8_000, None, 250, 0.0),
+        (2_500, 7_000, 250, 0.0),
+        (9_500, None, 300, -2.0),
+        (25_000, None, 300, 0.5),
+        (3_000, -6_000, 300, 0.0),
+        (20_000, None, 300, -1.0),
+        (4_000, None, 300, 10.0),
+        (4_000, None, 300, -10.0),
+        (2_500, 6_500, 300, 0.0),
+        (31_500, None, 300, -0.5),
+        (6_000, None, 200, -1.0),
+        (4_000, None, 120, 0.0),
+    ]
+    for length, radius, speed, gradient in walk:
+        if radius is None:
+            builder.straight(length, speed_kmh=speed, gradient_permille=gradient)
+        else:
+            builder.curve(length, radius, speed_kmh=speed, gradient_permille=gradient)
+    stations = [
+        ("milano-rogoredo", "Milano Rogoredo", 500.0),
+        ("lodi", "Lodi junction", 30_000.0),
+        ("parma", "Parma junction", 92_000.0),
+        ("reggio-emilia", "Reggio Emilia AV Mediopadana", 128_000.0),
+        ("modena", "Modena junction", 158_000.0),
+        ("bologna-centrale", "Bologna Centrale AV", 199_000.0),
+    ]
+    for stop_id, name, position in stations:
+        builder.stopping_point(stop_id, name, position, tolerance_m=2.0, platform_length_m=400.0)
+    for index, position in enumerate(range(1_000, 200_000, 5_000)):
+        builder.balise_group(1_000 + index, float(position))
+    return builder.build(geodetic_step_m=50.0)
+
+
+SEED_LINES: dict[str, Callable[[], Line]] = {
+    "bologna-ring": bologna_ring,
+    "milano-bologna": milano_bologna,
+}
 
 
 def load_seed_line(line_id: str) -> Line:

@@ -51,8 +51,12 @@ class TrackMap:
         return self._gradient.at(self.normalise(chainage_m))
 
     def curve_radius_m(self, chainage_m: float) -> float:
-        """Curve radius [m] at the chainage; ``inf`` on straight track."""
-        return self._radius.at(self.normalise(chainage_m))
+        """Curve radius [m] at the chainage, unsigned; ``inf`` on straight track."""
+        return abs(self._radius.at(self.normalise(chainage_m)))
+
+    def curvature_per_m(self, chainage_m: float) -> float:
+        """Signed curvature [1/m] at the chainage: positive turning left, 0 on straight track."""
+        return 1.0 / self._radius.at(self.normalise(chainage_m))
 
     def speed_limit_mps(self, chainage_m: float) -> float:
         """Static line speed [m/s] at the chainage."""

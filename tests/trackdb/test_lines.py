@@ -30,6 +30,30 @@ def test_seed_ring_is_plausible() -> None:
     assert len(line.stopping_points) == 3
     assert min(s.value for s in line.speed_limit_mps) * 3.6 > 40.0
     assert max(abs(s.value) for s in line.gradient_permille) <= 10.0
+    assert line.etcs_level == 1
+    assert any(
+        packet.type == "movement_authority"
+        for group in line.balise_groups
+        for packet in group.packets
+    )
+    # The ring closes: altitude and position come back to the origin.
+    first, last = line.geodetic[0], line.geodetic[-1]
+    assert last.altitude_m == pytest.approx(first.altitude_m, abs=1e-6)
+    assert (last.latitude_deg, last.longitude_deg) == pytest.approx(
+        (first.latitude_deg, first.longitude_deg), abs=1e-7
+    )
+
+
+def test_seed_high_speed_line_is_plausible() -> None:
+    line = load_seed_line("milano-bologna")
+    assert line.length_m == 200_000.0
+    assert max(s.value for s in line.speed_limit_mps) * 3.6 == pytest.approx(300.0)
+    assert min(s.value for s in line.speed_limit_mps) * 3.6 < 200.0
+    assert max(abs(s.value) for s in line.gradient_permille) <= 15.0
+    assert (
+        line.stopping_points[0].position_m < 1000 and line.stopping_points[-1].position_m > 198_000
+    )
+    assert len(line.stopping_points) >= 4
 
 
 def test_version_is_a_content_hash() -> None:
@@ -66,6 +90,7 @@ def test_version_is_a_content_hash() -> None:
         ),
         ({"speed_limit_mps": [{"start_m": 0, "end_m": 1000, "value": 0.0}]}, "non-positive speed"),
         ({"curve_radius_m": [{"start_m": 100, "end_m": 50, "value": 300}]}, "non-positive length"),
+        ({"curve_radius_m": [{"start_m": 100, "end_m": 200, "value": 10}]}, "below 50 m"),
         ({"stopping_points": [{"id": "x", "name": "X", "position_m": 1000.0}]}, "beyond"),
     ],
 )
@@ -78,11 +103,14 @@ def test_invalid_lines_list_their_problems(overrides: dict[str, object], problem
 def test_track_map_lookups_and_ring_wrap() -> None:
     ring = TrackMap(load_seed_line("bologna-ring"))
     assert ring.curve_radius_m(100.0) == math.inf
-    assert ring.curve_radius_m(1000.0) == 450.0
-    assert ring.gradient_permille(700.0) == 4.0
-    assert ring.gradient_permille(700.0 + ring.length_m) == 4.0
+    assert ring.curvature_per_m(100.0) == 0.0
+    assert ring.curve_radius_m(1200.0) == 400.0
+    assert ring.curvature_per_m(1200.0) == pytest.approx(1 / 400.0)
+    assert ring.gradient_permille(700.0) == 2.0
+    assert ring.gradient_permille(700.0 + ring.length_m) == 2.0
     assert ring.normalise(-1.0) == pytest.approx(ring.length_m - 1.0)
-    assert ring.speed_limit_mps(1000.0) == pytest.approx(60 / 3.6)
+    assert ring.speed_limit_mps(1200.0) == pytest.approx(60 / 3.6)
+    assert ring.speed_limit_mps(700.0) == pytest.approx(80 / 3.6)
 
 
 def test_track_map_clamps_an_open_line() -> None:
