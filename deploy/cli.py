@@ -4,13 +4,18 @@ from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 
 from protocol import DEFAULT_ROUTER_ENDPOINT, ZenohSettings
 from protocol.router import run_router
+
+if TYPE_CHECKING:
+    from sqlalchemy.orm import Session
 
 app = typer.Typer(
     help="ato: an open GoA4 ATO over ETCS stack for an unmanned inspection vehicle.",
@@ -19,8 +24,16 @@ app = typer.Typer(
 )
 bench_app = typer.Typer(help="Benchmarks that print numbers.", no_args_is_help=True)
 app.add_typer(bench_app, name="bench")
+trackdb_app = typer.Typer(help="Track data in and out of the database.", no_args_is_help=True)
+app.add_typer(trackdb_app, name="trackdb")
 
 ZenohOption = Annotated[str, typer.Option("--zenoh", help="Zenoh router endpoint to connect to.")]
+DatabaseOption = Annotated[
+    str | None,
+    typer.Option(
+        "--database", help="SQLAlchemy URL (default: ATO_DATABASE_URL, else sqlite:///ato.db)."
+    ),
+]
 
 
 def _logging(verbose: bool) -> None:
@@ -109,6 +122,16 @@ def demo(
     run_demo(port=port, data_dir=data_dir)
 
 
+@bench_app.command("trackdb")
+def bench_trackdb(
+    count: Annotated[int, typer.Option(help="Calls per query type.")] = 20000,
+) -> None:
+    """TrackMap point queries and GPS projection on milano-bologna and bologna-ring."""
+    from deploy.bench_trackdb import bench_trackdb as run
+
+    run(count=count)
+
+
 @bench_app.command("zenoh")
 def bench_zenoh(
     count: Annotated[int, typer.Option(help="Commands per measurement.")] = 2000,
@@ -118,3 +141,101 @@ def bench_zenoh(
     from deploy.bench import bench_zenoh as run
 
     run(count=count, warmup=warmup)
+
+
+def _database_url(database: str | None) -> str:
+    """The URL given, else ``ATO_DATABASE_URL``, else the trackside's default."""
+    import os
+
+    from trackside.config import Settings
+
+    if database is not None:
+        return database
+    default: str = Settings.model_fields["database_url"].default
+    return os.environ.get("ATO_DATABASE_URL", default)
+
+
+@contextmanager
+def _database_session(database: str | None) -> Iterator[Session]:
+    """A session in one transaction on the migrated database, committed on success."""
+    from sqlalchemy.orm import Session
+
+    from trackside.db import create_database_engine, migrate
+
+    engine = create_database_engine(_database_url(database))
+    try:
+        migrate(engine)
+        with Session(engine) as session, session.begin():
+            yield session
+    finally:
+        engine.dispose()
+
+
+@trackdb_app.command("import")
+def trackdb_import(
+    file: Annotated[
+        Path, typer.Argument(help="A line document (JSON).", exists=True, dir_okay=False)
+    ],
+    database: DatabaseOption = None,
+) -> None:
+    """Validate and import a line; prints its id and version. Invalid: every problem, exit 2."""
+    from trackdb import LineValidationError
+    from trackdb.storage import import_line
+
+    try:
+        with _database_session(database) as session:
+            line = import_line(session, file.read_bytes())
+    except LineValidationError as exc:
+        typer.echo(
+            f"{file}: line {exc.line_id!r} rejected, {len(exc.problems)} problem(s):", err=True
+        )
+        for problem in exc.problems:
+            typer.echo(problem, err=True)
+        raise typer.Exit(code=2) from exc
+    typer.echo(f"{line.id} {line.version()}")
+
+
+@trackdb_app.command("export")
+def trackdb_export(
+    line: Annotated[str, typer.Argument(help="Line id.")],
+    database: DatabaseOption = None,
+    output: Annotated[
+        Path | None, typer.Option("--output", "-o", help="Write to this file, not stdout.")
+    ] = None,
+    version: Annotated[
+        str | None, typer.Option("--version", help="A stored version; the current by default.")
+    ] = None,
+) -> None:
+    """Print a line's canonical JSON (its SHA-256 is the line's version)."""
+    from trackdb import LineNotFoundError
+    from trackdb.storage import export_line
+
+    try:
+        with _database_session(database) as session:
+            document = export_line(session, line, version)
+    except LineNotFoundError as exc:
+        typer.echo(str(exc), err=True)
+        raise typer.Exit(code=1) from exc
+    if output is None:
+        typer.echo(document)
+    else:
+        output.write_text(document, encoding="utf-8")
+
+
+@trackdb_app.command("list")
+def trackdb_list(database: DatabaseOption = None) -> None:
+    """List the stored lines, tab-separated: id, current version, length in metres, name."""
+    from trackdb.storage import list_lines
+
+    with _database_session(database) as session:
+        summaries = list_lines(session)
+    for summary in summaries:
+        typer.echo(f"{summary.id}\t{summary.version}\t{summary.length_m:.1f}\t{summary.name}")
+
+
+@trackdb_app.command("schema")
+def trackdb_schema() -> None:
+    """Print the JSON Schema of a line document (as in trackdb/line.schema.json)."""
+    from trackdb import line_json_schema
+
+    typer.echo(line_json_schema(), nl=False)

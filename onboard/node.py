@@ -23,9 +23,25 @@ from onboard.adf import RemoteDrivingController
 from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.runtime import Clock, Executive
 from onboard.runtime.clock import NS_PER_S
-from protocol import TypedPublisher, TypedQueryable, declare_liveliness
+from onboard.track_database_manager import TrackDatabaseManager
+from protocol import (
+    ProtocolError,
+    TypedPublisher,
+    TypedQueryable,
+    TypedSubscriber,
+    declare_liveliness,
+    request_async,
+)
 from protocol import messages as m
-from protocol.registry import ALIVE_ONBOARD, COMMAND, EVENT, STATUS
+from protocol.registry import (
+    ALIVE_ONBOARD,
+    COMMAND,
+    EVENT,
+    JOURNEY_PROFILE,
+    JOURNEY_PROFILE_ACK,
+    LINE_VERSION,
+    STATUS,
+)
 from trackdb import TrackMap
 
 __all__ = ["OnboardNode", "OnboardSettings", "TASK_TABLE"]
@@ -44,6 +60,7 @@ TASK_TABLE: dict[str, TaskSpec] = {
     "plant": TaskSpec(period_s=0.01, priority=30),
     "rd_control": TaskSpec(period_s=0.1, priority=20),
     "status": TaskSpec(period_s=0.2, priority=10),
+    "track_data": TaskSpec(period_s=5.0, priority=5),
 }
 """The onboard tasks: period [s] and priority (higher runs first at a shared release)."""
 
@@ -69,6 +86,8 @@ class OnboardNode:
         self.settings = settings
         self.vehicle_id = settings.vehicle_id
         self.track_map = track_map
+        self.track_database = TrackDatabaseManager(track_map)
+        self._session = session
         self.clock = clock
         self.executive = Executive(clock)
         self.plant = PointMassModel(URV_PARAMETERS, position_m=settings.start_position_m)
@@ -89,6 +108,9 @@ class OnboardNode:
         self._status = TypedPublisher(session, STATUS, **chunks)
         self._events = TypedPublisher(session, EVENT, **chunks)
         self._commands = TypedQueryable(session, COMMAND, self._on_command, **chunks)
+        self._journeys = TypedSubscriber(session, JOURNEY_PROFILE, vehicle=self.vehicle_id)
+        self._journey_acks = TypedPublisher(session, JOURNEY_PROFILE_ACK, **chunks)
+        self._line_version: m.LineVersionReply | None = None
         self._token = declare_liveliness(session, ALIVE_ONBOARD.format(vehicle=self.vehicle_id))
 
         for name, spec in TASK_TABLE.items():
@@ -131,7 +153,62 @@ class OnboardNode:
 
     # -- tasks (called by the executive) -------------------------------------------------------
 
+    def _on_line_version(self, reply: m.LineVersionReply) -> None:
+        with self._inbox_lock:
+            self._line_version = reply
+
+    def _task_track_data(self, now_ns: int) -> None:
+        """Ask the trackside which version of the line it holds (answered asynchronously)."""
+        request = m.LineVersionRequest(vehicle_id=self.vehicle_id, line_id=self.track_map.line.id)
+        try:
+            request_async(
+                self._session, LINE_VERSION, request, self._on_line_version,
+                line=self.track_map.line.id,
+            )  # fmt: skip
+        except ProtocolError as exc:
+            self.emit(m.EventSeverity.WARNING, "track_data.query_failed", str(exc), now_ns=now_ns)
+
+    def _take_line_version(self, now_ns: int) -> None:
+        with self._inbox_lock:
+            reply, self._line_version = self._line_version, None
+        if reply is None:
+            return
+        matched_before = self.track_database.versions_match
+        self.track_database.record_trackside_version(reply)
+        if self.track_database.versions_match != matched_before or reply.version is None:
+            code = "track_data.match" if self.track_database.versions_match else "track_data.differ"
+            severity = (
+                m.EventSeverity.INFO if code == "track_data.match" else m.EventSeverity.WARNING
+            )
+            onboard = self.track_database.onboard_version
+            text = f"trackside {reply.version or 'unknown'} onboard {onboard}"
+            self.emit(severity, code, text, now_ns=now_ns)
+
+    def _take_journeys(self, now_ns: int) -> None:
+        while (received := self._journeys.try_recv()) is not None:
+            _, profile = received
+            if profile.vehicle_id != self.vehicle_id:
+                review_reason: str | None = f"journey for {profile.vehicle_id}"
+                accepted = False
+            else:
+                review = self.track_database.review(profile)
+                accepted, review_reason = review.accepted, review.reason
+            self._journey_acks.put(
+                m.JourneyProfileAck(
+                    vehicle_id=self.vehicle_id, journey_id=profile.journey_id,
+                    version=profile.version, accepted=accepted, reason=review_reason,
+                )
+            )  # fmt: skip
+            verdict = "accepted" if accepted else f"refused: {review_reason}"
+            self.emit(
+                m.EventSeverity.INFO if accepted else m.EventSeverity.WARNING,
+                "journey.accepted" if accepted else "journey.refused",
+                f"journey {profile.journey_id} v{profile.version} {verdict}", now_ns=now_ns,
+            )  # fmt: skip
+
     def _task_commands(self, now_ns: int) -> None:
+        self._take_line_version(now_ns)
+        self._take_journeys(now_ns)
         while True:
             with self._inbox_lock:
                 if not self._inbox:
@@ -197,6 +274,9 @@ class OnboardNode:
             etcs_mode=m.EtcsMode.SR,
             sc_state=self.sc_state,
             target_speed_mps=self.target_speed_mps,
+            journey_id=None
+            if self.track_database.journey is None
+            else self.track_database.journey.journey_id,
         )
 
     def emit(
@@ -227,5 +307,7 @@ class OnboardNode:
         """Withdraw from the network: the token goes first, so trackside sees it at once."""
         self._token.undeclare()
         self._commands.close()
+        self._journeys.close()
+        self._journey_acks.close()
         self._status.close()
         self._events.close()

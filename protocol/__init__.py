@@ -29,6 +29,7 @@ from protocol.bus import (
     TypedSubscriber,
     declare_liveliness,
     request,
+    request_async,
 )
 from protocol.registry import TOPICS, Delivery, Direction, Topic
 from protocol.zenoh_config import (
@@ -65,5 +66,6 @@ __all__ = [
     "declare_liveliness",
     "open_session",
     "request",
+    "request_async",
     "zenoh_config",
 ]

@@ -38,6 +38,7 @@ __all__ = [
     "TypedSubscriber",
     "declare_liveliness",
     "request",
+    "request_async",
 ]
 
 T = TypeVar("T")
@@ -338,6 +339,41 @@ def request(
     except zenoh.ZError as exc:
         raise TransportError(f"query on {key} failed: {exc}") from exc
     raise RequestTimeoutError(f"no reply on {key} within {timeout_s} s")
+
+
+def request_async(
+    session: zenoh.Session,
+    topic: Topic[T],
+    message: T,
+    on_reply: Callable[[Any], None],
+    *,
+    timeout_s: float = 2.0,
+    **chunks: str,
+) -> None:
+    """Send a query without waiting; ``on_reply`` gets each valid reply on Zenoh's thread.
+
+    Error replies and replies that do not validate are logged and dropped, as receivers do.
+    """
+    key = topic.key(**chunks)
+
+    def handle(reply: zenoh.Reply) -> None:
+        if reply.ok is None:
+            _log.warning("%s: error reply to a query", key)
+            return
+        try:
+            decoded = topic.decode_reply(reply.ok.payload.to_bytes())
+        except PayloadError as exc:
+            _log.warning("%s: bad reply dropped: %s", key, exc)
+            return
+        try:
+            on_reply(decoded)
+        except Exception:  # a consumer's bug must not kill Zenoh's thread
+            _log.exception("reply callback for %s failed", key)
+
+    try:
+        session.get(key, handle, payload=topic.encode(message), timeout=timeout_s)
+    except zenoh.ZError as exc:
+        raise TransportError(f"query on {key} failed: {exc}") from exc
 
 
 def declare_liveliness(session: zenoh.Session, key: str) -> zenoh.LivelinessToken:

@@ -32,6 +32,8 @@ __all__ = [
     "JourneyProfile",
     "JourneyProfileAck",
     "JourneyProfileStatus",
+    "LineVersionReply",
+    "LineVersionRequest",
     "Message",
     "PingCommand",
     "RemoteDrivingTargetCommand",
@@ -142,6 +144,7 @@ class StatusReport(Message):
     target_speed_mps: NonNegativeFloat | None = Field(
         default=None, description="Remote-driving target speed [m/s], when one is set"
     )
+    journey_id: str | None = Field(default=None, max_length=64, description="Accepted journey")
 
 
 class EventSeverity(StrEnum):
@@ -272,6 +275,20 @@ class JourneyProfileAck(Message):
     version: int = Field(ge=0)
     accepted: bool
     reason: str | None = Field(default=None, max_length=256)
+
+
+class LineVersionRequest(Message):
+    """An onboard asks which version of a line the trackside holds."""
+
+    vehicle_id: VehicleId
+    line_id: str = Field(min_length=1, max_length=64)
+
+
+class LineVersionReply(Message):
+    """The trackside's current version of a line, or ``None`` if it does not know the line."""
+
+    line_id: str = Field(min_length=1, max_length=64)
+    version: str | None = Field(default=None, max_length=128)
 
 
 class SessionRequest(Message):

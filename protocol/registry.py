@@ -33,6 +33,7 @@ __all__ = [
     "EVENT",
     "JOURNEY_PROFILE",
     "JOURNEY_PROFILE_ACK",
+    "LINE_VERSION",
     "SESSION",
     "SESSION_TERMINATION",
     "STATUS",
@@ -181,6 +182,10 @@ JOURNEY_PROFILE_ACK: Topic[m.JourneyProfileAck] = Topic(
     "journey_profile_ack", "ato/ob/{vehicle}/journey_profile_ack", m.JourneyProfileAck,
     Direction.ONBOARD_TO_TRACKSIDE, Delivery.FIFO,
 )  # fmt: skip
+LINE_VERSION: Topic[m.LineVersionRequest] = Topic(
+    "line_version", "ato/ts/line/{line}/version", m.LineVersionRequest,
+    Direction.ONBOARD_TO_TRACKSIDE, Delivery.QUERY, reply_type=m.LineVersionReply,
+)  # fmt: skip
 SESSION: Topic[m.SessionRequest] = Topic(
     "session", "ato/ts/session/{vehicle}", m.SessionRequest,
     Direction.ONBOARD_TO_TRACKSIDE, Delivery.QUERY, reply_type=m.SessionResponse,
@@ -201,6 +206,7 @@ TOPICS: tuple[Topic[Any], ...] = (
     COMMAND,
     JOURNEY_PROFILE,
     JOURNEY_PROFILE_ACK,
+    LINE_VERSION,
     SESSION,
     SESSION_TERMINATION,
 )

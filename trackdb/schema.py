@@ -20,6 +20,7 @@ authority), EoA (end of authority), NID_BG (balise group identity), GPS (satelli
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 from collections import Counter
 from collections.abc import Mapping
@@ -28,6 +29,8 @@ from typing import Annotated, Any, Literal, Self
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 from pydantic_core import PydanticCustomError
+
+from trackdb._exceptions import LineValidationError
 
 __all__ = [
     "SCHEMA_VERSION",
@@ -48,6 +51,7 @@ __all__ = [
     "StaticSpeedProfilePacket",
     "StoppingPoint",
     "TemporarySpeedRestriction",
+    "line_json_schema",
     "parse_line",
 ]
 
@@ -61,15 +65,6 @@ PositiveSpeed = Annotated[float, Field(gt=0.0, le=150.0, allow_inf_nan=False)]
 
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-class LineValidationError(ValueError):
-    """A line that breaks the schema's rules; ``problems`` lists each one with its location."""
-
-    def __init__(self, line_id: str, problems: list[str]) -> None:
-        super().__init__(f"line {line_id!r}: " + "; ".join(problems))
-        self.line_id = line_id
-        self.problems = problems
 
 
 class ProfileSection(_Model):
@@ -239,8 +234,27 @@ def parse_line(document: Mapping[str, Any] | str | bytes) -> Line:
             else:
                 where = ".".join(str(part) for part in error["loc"]) or "line"
                 problems.append(f"{where}: {error['msg']}")
-        line_id = document.get("id", "?") if isinstance(document, Mapping) else "?"
-        raise LineValidationError(str(line_id), problems) from exc
+        raise LineValidationError(_document_id(document), problems) from exc
+
+
+def _document_id(document: Mapping[str, Any] | str | bytes) -> str:
+    """The ``id`` a rejected document claims, for the error message; ``?`` if none."""
+    if isinstance(document, str | bytes):
+        try:
+            document = json.loads(document)
+        except ValueError:
+            return "?"
+    return str(document.get("id", "?")) if isinstance(document, Mapping) else "?"
+
+
+def line_json_schema() -> str:
+    """The JSON Schema of a line document: pretty-printed, keys sorted, with a final newline.
+
+    ``trackdb/line.schema.json`` holds this text; regenerate it with
+    ``ato trackdb schema > trackdb/line.schema.json`` after changing the models.
+    """
+    schema = {"$schema": "https://json-schema.org/draft/2020-12/schema"} | Line.model_json_schema()
+    return json.dumps(schema, indent=2, sort_keys=True, ensure_ascii=False) + "\n"
 
 
 def _line_problems(line: Line) -> list[str]:

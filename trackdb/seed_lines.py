@@ -17,6 +17,7 @@ describe; the geodetic polylines start near Bologna and Milano.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 
@@ -119,8 +120,10 @@ SEED_LINES: dict[str, Callable[[], Line]] = {
 }
 
 
+@functools.cache
 def load_seed_line(line_id: str) -> Line:
-    """The shipped line of that id; ``KeyError`` names the known ones."""
+    """The shipped line of that id (built once, lines are immutable); ``KeyError`` names the
+    known ones."""
     try:
         return SEED_LINES[line_id]()
     except KeyError:

@@ -14,13 +14,15 @@ from dataclasses import dataclass
 
 import zenoh
 
-from protocol import LivelinessWatcher, TypedSubscriber, declare_liveliness
+from protocol import LivelinessWatcher, TypedQueryable, TypedSubscriber, declare_liveliness
 from protocol import messages as m
-from protocol.registry import ALIVE_ONBOARD, ALIVE_TRACKSIDE, STATUS
+from protocol.registry import ALIVE_ONBOARD, ALIVE_TRACKSIDE, LINE_VERSION, STATUS
 
 __all__ = ["VehicleSnapshot", "ZenohBridge"]
 
 ChangeListener = Callable[[], None]
+LineVersionLookup = Callable[[str], str | None]
+"""The current version of a line, ``None`` when the trackside does not hold it."""
 
 
 @dataclass(frozen=True)
@@ -40,6 +42,7 @@ class ZenohBridge:
         session: zenoh.Session,
         *,
         instance_id: str,
+        line_version: LineVersionLookup | None = None,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         self._clock = clock
@@ -51,7 +54,17 @@ class ZenohBridge:
         self._liveliness = LivelinessWatcher(
             session, ALIVE_ONBOARD.format(vehicle="*"), self._on_liveliness
         )
+        self._line_version = line_version
+        self._line_versions = TypedQueryable(session, LINE_VERSION, self._answer_line_version)
         self._token = declare_liveliness(session, ALIVE_TRACKSIDE.format(instance=instance_id))
+
+    def _answer_line_version(
+        self, chunks: dict[str, str], request: m.LineVersionRequest
+    ) -> m.LineVersionReply:
+        if request.line_id != chunks["line"]:
+            raise ValueError(f"request for {request.line_id} sent on {chunks['line']}'s key")
+        version = None if self._line_version is None else self._line_version(request.line_id)
+        return m.LineVersionReply(line_id=request.line_id, version=version)
 
     @property
     def status_stats(self) -> object:
@@ -117,5 +130,6 @@ class ZenohBridge:
 
     def close(self) -> None:
         self._token.undeclare()
+        self._line_versions.close()
         self._liveliness.close()
         self._status.close()

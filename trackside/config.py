@@ -30,6 +30,10 @@ class Settings(BaseSettings):
     token_ttl_s: float = Field(default=12 * 3600.0, gt=0, description="Bearer token life [s]")
     webui_dir: Path = DEFAULT_WEBUI_DIR
     fleet_push_period_s: float = Field(default=0.2, gt=0, description="WebSocket push [s]")
+    seed_lines: bool = Field(
+        default=True,
+        description="At start-up, import each shipped seed line whose id is not stored yet",
+    )
 
     def zenoh(self) -> ZenohSettings:
         return ZenohSettings(

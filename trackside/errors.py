@@ -6,7 +6,11 @@
     ├── AuthenticationError      bad credentials or token
     ├── PermissionDeniedError    role too low for the action
     ├── NotFoundError (LookupError)
-    └── ConflictError            the resource exists or is held by someone else
+    ├── ConflictError            the resource exists or is held by someone else
+    └── InvalidRequestError (ValueError)   values the service cannot act on (a bad range)
+
+The services also let trackdb's errors through (``trackdb.LineValidationError``,
+``trackdb.LineNotFoundError``, ``trackdb.LineConflictError``); the routes map them too.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from __future__ import annotations
 __all__ = [
     "AuthenticationError",
     "ConflictError",
+    "InvalidRequestError",
     "NotFoundError",
     "PermissionDeniedError",
     "TracksideError",
@@ -38,3 +43,7 @@ class NotFoundError(TracksideError, LookupError):
 
 class ConflictError(TracksideError):
     """The resource already exists or is held by another user."""
+
+
+class InvalidRequestError(TracksideError, ValueError):
+    """The request's values are well-formed but the service cannot act on them."""

@@ -13,12 +13,15 @@ from fastapi.staticfiles import StaticFiles
 from sqlalchemy.orm import Session, sessionmaker
 
 from protocol import open_session
-from trackside.api.routes import auth, vehicles, ws
+from trackdb import LineNotFoundError
+from trackdb.storage import current_version
+from trackside.api.routes import auth, journeys, lines, vehicles, ws
 from trackside.api.routes import users as users_routes
 from trackside.bridge import ZenohBridge
 from trackside.config import Settings
 from trackside.db import create_database_engine, migrate
 from trackside.models import Role
+from trackside.services import lines as lines_service
 from trackside.services import users
 
 __all__ = ["create_app", "main"]
@@ -34,6 +37,23 @@ def _bootstrap_admin(settings: Settings, factory: sessionmaker[Session]) -> None
             )
 
 
+def _line_version(factory: sessionmaker[Session], line_id: str) -> str | None:
+    """The current version of a stored line, for onboard track-data checks."""
+    with factory() as db:
+        try:
+            return current_version(db, line_id)
+        except LineNotFoundError:
+            return None
+
+
+def _seed_lines(settings: Settings, factory: sessionmaker[Session]) -> None:
+    if settings.seed_lines:
+        with factory() as db, db.begin():
+            imported = lines_service.ensure_seed_lines(db)
+        if imported:
+            _log.info("imported seed lines: %s", ", ".join(imported))
+
+
 def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None) -> FastAPI:
     """Build the service. Without ``zenoh_session`` it opens (and closes) its own."""
 
@@ -43,6 +63,7 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
         migrate(engine)
         factory = sessionmaker(engine, expire_on_commit=False)
         _bootstrap_admin(settings, factory)
+        _seed_lines(settings, factory)
         app.state.settings = settings
         app.state.session_factory = factory
         sessions: AbstractContextManager[zenoh.Session] = (
@@ -51,7 +72,11 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
             else open_session(settings.zenoh())
         )
         with sessions as session:
-            bridge = ZenohBridge(session, instance_id=settings.instance_id)
+            bridge = ZenohBridge(
+                session,
+                instance_id=settings.instance_id,
+                line_version=lambda line_id: _line_version(factory, line_id),
+            )
             app.state.bridge = bridge
             try:
                 yield
@@ -69,6 +94,8 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
     api.include_router(auth.router)
     api.include_router(users_routes.router)
     api.include_router(vehicles.router)
+    api.include_router(lines.router)
+    api.include_router(journeys.router)
     api.include_router(ws.router)
     app.include_router(api)
 

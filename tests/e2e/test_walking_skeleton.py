@@ -65,6 +65,8 @@ def test_vehicle_appears_then_is_reported_gone(
         appeared_s = time.monotonic() - started
         item = _vehicle(client, headers, "URV1")
         assert item is not None and item["alive"] is True
+        # The onboard Track Database Manager asked the trackside for the line's version.
+        assert wait_for(lambda: node.track_database.versions_match, 3.0)
 
         # Drive it, through the router, and see its status change.
         ack = request(

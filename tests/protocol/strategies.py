@@ -26,6 +26,7 @@ status_reports = st.builds(
     ato_state=_enum(m.AtoState), etcs_mode=_enum(m.EtcsMode), sc_state=_enum(m.ScState),
     supervision_status=_enum(m.SupervisionStatus),
     target_speed_mps=st.none() | non_negative,
+    journey_id=st.none() | names,
 )  # fmt: skip
 
 events = st.builds(
@@ -108,6 +109,11 @@ session_terminations = st.builds(
     reason=st.text(max_size=256),
 )  # fmt: skip
 
+line_version_requests = st.builds(m.LineVersionRequest, vehicle_id=vehicle_ids, line_id=names)
+line_version_replies = st.builds(
+    m.LineVersionReply, line_id=names, version=st.none() | st.text(min_size=1, max_size=128)
+)
+
 STRATEGIES: dict[type[m.Message], st.SearchStrategy[Any]] = {
     m.StatusReport: status_reports,
     m.Event: events,
@@ -115,6 +121,8 @@ STRATEGIES: dict[type[m.Message], st.SearchStrategy[Any]] = {
     m.CommandAck: command_acks,
     m.JourneyProfile: journey_profiles(),
     m.JourneyProfileAck: journey_profile_acks,
+    m.LineVersionRequest: line_version_requests,
+    m.LineVersionReply: line_version_replies,
     m.SessionRequest: session_requests,
     m.SessionAccept: session_accepts,
     m.SessionReject: session_rejects,

@@ -16,6 +16,7 @@ from trackside.models import Role, User
 from trackside.services import users
 
 __all__ = [
+    "AdminUser",
     "BridgeDep",
     "CurrentUser",
     "SessionDep",
@@ -79,3 +80,4 @@ def require(role: Role) -> Callable[[User], User]:
 
 
 ObserverUser = Annotated[User, Depends(require(Role.OBSERVER))]
+AdminUser = Annotated[User, Depends(require(Role.ADMIN))]

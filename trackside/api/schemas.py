@@ -2,12 +2,26 @@
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict
+from datetime import datetime
+
+from pydantic import BaseModel, ConfigDict, Field
 
 from protocol import messages as m
+from trackdb.storage import LineSummary
 from trackside.bridge import VehicleSnapshot
+from trackside.services.lines import LineProfile
 
-__all__ = ["TokenPublic", "VehiclePublic", "VehicleStatusPublic"]
+__all__ = [
+    "LinePublic",
+    "LineProfilePublic",
+    "LineRejectedPublic",
+    "LineVersionPublic",
+    "LineVersionRef",
+    "ProblemsPublic",
+    "TokenPublic",
+    "VehiclePublic",
+    "VehicleStatusPublic",
+]
 
 
 class TokenPublic(BaseModel):
@@ -31,6 +45,7 @@ class VehicleStatusPublic(BaseModel):
     sc_state: m.ScState
     supervision_status: m.SupervisionStatus
     target_speed_mps: float | None
+    journey_id: str | None
     age_s: float | None
     rate_ok: bool
 
@@ -52,3 +67,86 @@ class VehiclePublic(BaseModel):
                 **fields, age_s=snapshot.status_age_s, rate_ok=snapshot.status_rate_ok
             )
         return cls(id=snapshot.id, alive=snapshot.alive, status=status)
+
+
+class LinePublic(BaseModel):
+    """A line's current version, summarised."""
+
+    id: str
+    name: str
+    version: str = Field(description="SHA-256 of the line's canonical JSON")
+    length_m: float = Field(description="Length [m]")
+    ring: bool = Field(description="Chainage wraps at length_m")
+    etcs_level: int
+
+    @classmethod
+    def from_summary(cls, summary: LineSummary) -> LinePublic:
+        return cls(
+            id=summary.id, name=summary.name, version=summary.version,
+            length_m=summary.length_m, ring=summary.ring, etcs_level=summary.etcs_level,
+        )  # fmt: skip
+
+
+class LineVersionPublic(BaseModel):
+    """One stored version of a line."""
+
+    version: str = Field(description="SHA-256 of the line's canonical JSON")
+    name: str
+    length_m: float = Field(description="Length [m]")
+    ring: bool
+    etcs_level: int
+    created_at: datetime = Field(description="When this version was first imported (UTC)")
+    current: bool = Field(description="This version is the one in force")
+
+    @classmethod
+    def from_summary(cls, summary: LineSummary) -> LineVersionPublic:
+        return cls(
+            version=summary.version, name=summary.name, length_m=summary.length_m,
+            ring=summary.ring, etcs_level=summary.etcs_level, created_at=summary.created_at,
+            current=summary.current,
+        )  # fmt: skip
+
+
+class LineVersionRef(BaseModel):
+    """A line id and its current version."""
+
+    id: str
+    version: str
+
+
+class LineProfilePublic(BaseModel):
+    """A line sampled for plotting; arrays of equal length, SI units."""
+
+    id: str
+    version: str
+    ring: bool
+    length_m: float = Field(description="Length [m]")
+    chainage_m: list[float] = Field(description="Sample chainages as asked, not wrapped [m]")
+    gradient_permille: list[float] = Field(description="Gradient [‰], positive uphill")
+    curvature_per_m: list[float] = Field(description="Signed curvature [1/m], positive left")
+    speed_limit_mps: list[float] = Field(description="Static line speed [m/s]")
+    mrsp_mps: list[float] = Field(description="Most restrictive speed profile, with TSRs [m/s]")
+    altitude_m: list[float] | None = Field(description="Altitude [m]; null without geodetic data")
+
+    @classmethod
+    def from_profile(cls, profile: LineProfile) -> LineProfilePublic:
+        return cls(
+            id=profile.line_id, version=profile.version, ring=profile.ring,
+            length_m=profile.length_m, chainage_m=profile.chainage_m,
+            gradient_permille=profile.gradient_permille, curvature_per_m=profile.curvature_per_m,
+            speed_limit_mps=profile.speed_limit_mps, mrsp_mps=profile.mrsp_mps,
+            altitude_m=profile.altitude_m,
+        )  # fmt: skip
+
+
+class ProblemsPublic(BaseModel):
+    """Why a request was refused: a message and every problem found, with its location."""
+
+    message: str
+    problems: list[str]
+
+
+class LineRejectedPublic(BaseModel):
+    """The body of a 422 answer to a line import or a profile request."""
+
+    detail: ProblemsPublic

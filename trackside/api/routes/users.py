@@ -2,19 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Annotated
-
-from fastapi import APIRouter, Depends, HTTPException, status
+from fastapi import APIRouter, HTTPException, status
 from pydantic import BaseModel, Field
 
-from trackside.api.deps import CurrentUser, SessionDep, require
+from trackside.api.deps import AdminUser, CurrentUser, SessionDep
 from trackside.errors import ConflictError
 from trackside.models import Role, User
 from trackside.services import users
 
 router = APIRouter(prefix="/users", tags=["users"])
-
-AdminUser = Annotated[User, Depends(require(Role.ADMIN))]
 
 
 class UserCreate(BaseModel):
