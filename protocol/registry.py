@@ -63,7 +63,7 @@ class Delivery(StrEnum):
 
 
 def _alternate(parts: list[str]) -> list[tuple[bool, str]]:
-    """Pairs each piece of ``re.split`` output with whether it was a captured placeholder."""
+    """Pairs each piece of ``re.split`` output with whether it was a captured chunk name."""
     return [(index % 2 == 1, part) for index, part in enumerate(parts)]
 
 
@@ -76,7 +76,7 @@ class Topic(Generic[T]):
     name
         Short name used in logs and counters.
     key_template
-        Key expression with ``{placeholders}`` for its variable chunks.
+        Key expression with ``{chunk}`` markers for its variable chunks.
     payload_type
         Model (or annotated union) of the payload; of the request for ``QUERY`` topics.
     direction
@@ -109,7 +109,7 @@ class Topic(Generic[T]):
         object.__setattr__(self, "_pattern", re.compile(f"^{regex}$"))
 
     @property
-    def placeholders(self) -> tuple[str, ...]:
+    def chunk_names(self) -> tuple[str, ...]:
         return tuple(_PLACEHOLDER.findall(self.key_template))
 
     @property
@@ -118,9 +118,9 @@ class Topic(Generic[T]):
 
     def key(self, **chunks: str) -> str:
         """The concrete key for these chunk values; a missing or bad chunk raises."""
-        if set(chunks) != set(self.placeholders):
+        if set(chunks) != set(self.chunk_names):
             raise KeyExpressionError(
-                f"{self.name}: expected chunks {self.placeholders}, got {tuple(chunks)}"
+                f"{self.name}: expected chunks {self.chunk_names}, got {tuple(chunks)}"
             )
         for name, value in chunks.items():
             if not re.fullmatch(_CHUNK, value):
@@ -129,7 +129,7 @@ class Topic(Generic[T]):
 
     def wildcard(self, **chunks: str) -> str:
         """A key expression matching this topic for the given chunks and any others."""
-        filled = {name: chunks.get(name, "*") for name in self.placeholders}
+        filled = {name: chunks.get(name, "*") for name in self.chunk_names}
         return self.key_template.format(**filled)
 
     def parse(self, key: str) -> dict[str, str]:
@@ -137,7 +137,7 @@ class Topic(Generic[T]):
         match = self._pattern.match(key)
         if match is None:
             raise KeyExpressionError(f"{key!r} is not a {self.name} key ({self.key_template})")
-        return dict(zip(self.placeholders, match.groups(), strict=True))
+        return dict(zip(self.chunk_names, match.groups(), strict=True))
 
     def encode(self, message: T) -> bytes:
         return self._adapter.dump_json(message)

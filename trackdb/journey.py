@@ -82,6 +82,10 @@ class JourneyTimingPoint(BaseModel):
     arrival_window_s: float = Field(default=2.0, ge=0.0, allow_inf_nan=False, description="[s]")
     departure_time_s: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
     minimum_dwell_s: float = Field(default=0.0, ge=0.0, allow_inf_nan=False, description="[s]")
+    stopping_tolerance_m: float | None = Field(
+        default=None, ge=0.1, le=100.0, allow_inf_nan=False,
+        description="± [m]; the stopping point's own tolerance when not given",
+    )  # fmt: skip
     end_of_journey: bool = False
 
     @model_validator(mode="after")
