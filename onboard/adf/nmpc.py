@@ -1,0 +1,241 @@
+"""The autonomous-driving (AD) controller of seed 000: nonlinear model predictive control.
+
+Over a horizon of N steps of ``step_s`` it minimises
+
+    Σ ω1 (p − p_ref)² + ω2 (v − v_ref)² + ω3 u² + ω4 Δu²
+
+subject to the control-oriented model M(1 + ρ) v̇ = u − (γ + η v + ι v²) − F_track, ṗ = v
+(F_track: gradient and curve forces along the reference, given per stage), v_min ≤ v ≤ v_max(p),
+−F_brake ≤ u ≤ F_max and u·v ≤ P_max (the traction power). The applied force u is carried in the
+state and the decision variables are its increments Δu (multiple shooting, one RK4 step per
+interval). The NLP is built once with casadi and solved by ``sqpmethod`` with the ``qrqp`` QP
+solver, warm-started from the previous solution shifted by one step; IPOPT can be chosen for
+comparison. A failed solve falls back to a safe action, the rest of the previous feasible plan or
+else full service braking, and is counted.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import casadi as ca
+import numpy as np
+import numpy.typing as npt
+
+from onboard.plant.point_mass import PointMassParameters
+
+__all__ = ["NmpcConfig", "NmpcController", "NmpcReference", "NmpcResult", "NmpcStats"]
+
+FloatArray = npt.NDArray[np.float64]
+STATE_SIZE = 3
+MAX_SPEED_MPS = 100.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class NmpcConfig:
+    horizon_steps: int = 50
+    step_s: float = 0.2
+    weight_position: float = 1.0
+    """ω1 [1/m²]"""
+    weight_speed: float = 10.0
+    """ω2 [s²/m²]"""
+    weight_force: float = 1e-8
+    """ω3 [1/N²]"""
+    weight_force_rate: float = 1e-6
+    """ω4 [1/N²] on the increment per step"""
+    max_force_step_n: float = 5_000.0
+    """Largest change of u in one step [N]: a jerk bound."""
+    solver: Literal["sqpmethod", "ipopt"] = "sqpmethod"
+    max_iterations: int = 20
+
+
+@dataclass(frozen=True)
+class NmpcReference:
+    """Per-stage reference over the horizon, each of length ``horizon_steps``."""
+
+    position_m: FloatArray
+    speed_mps: FloatArray
+    max_speed_mps: FloatArray
+    track_force_n: FloatArray
+
+
+@dataclass(frozen=True)
+class NmpcResult:
+    force_n: float
+    """Force to apply over the next step [N]."""
+    success: bool
+    fallback: bool
+    solve_time_s: float
+    predicted_speed_mps: FloatArray
+    predicted_force_n: FloatArray
+
+
+@dataclass
+class NmpcStats:
+    solves: int = 0
+    failures: int = 0
+    solve_times_s: list[float] = field(default_factory=list)
+
+
+class NmpcController:
+    """Receding-horizon speed and position tracking for the point-mass model."""
+
+    def __init__(self, model: PointMassParameters, config: NmpcConfig | None = None) -> None:
+        self.model = model
+        self.config = config or NmpcConfig()
+        self.stats = NmpcStats()
+        self._solver, self._bounds = self._build()
+        n = self.config.horizon_steps
+        self._guess: FloatArray | None = None
+        self._plan: FloatArray = np.zeros(0)
+        self._variables = STATE_SIZE * (n + 1) + n
+
+    def _dynamics(self) -> ca.Function:
+        m = self.model
+        dt = self.config.step_s
+        state, increment, track = ca.SX.sym("x", STATE_SIZE), ca.SX.sym("du"), ca.SX.sym("ft")
+        mass = m.mass_kg * (1.0 + m.rotating_mass_factor)
+
+        def rate(x: Any) -> Any:
+            v, u = x[1], x[2]
+            resistance = m.davis_a_n + m.davis_b_n_per_mps * v + m.davis_c_n_per_mps2 * v * v
+            return ca.vertcat(v, (u - resistance - track) / mass, 0)
+
+        start = ca.vertcat(state[0], state[1], state[2] + increment)
+        k1 = rate(start)
+        k2 = rate(start + dt / 2 * k1)
+        k3 = rate(start + dt / 2 * k2)
+        k4 = rate(start + dt * k3)
+        end = start + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+        return ca.Function("step", [state, increment, track], [end])
+
+    def _build(self) -> tuple[ca.Function, dict[str, list[float]]]:
+        c, m, n = self.config, self.model, self.config.horizon_steps
+        step = self._dynamics()
+        states = ca.SX.sym("X", STATE_SIZE, n + 1)
+        increments = ca.SX.sym("dU", 1, n)
+        parameters = ca.SX.sym("P", STATE_SIZE + 4 * n)
+        p_ref, v_ref = parameters[3 : 3 + n], parameters[3 + n : 3 + 2 * n]
+        v_max, track = parameters[3 + 2 * n : 3 + 3 * n], parameters[3 + 3 * n :]
+        cost: Any = 0
+        constraints = [states[:, 0] - parameters[0:3]]
+        lower = [0.0] * STATE_SIZE
+        upper = [0.0] * STATE_SIZE
+        for k in range(n):
+            following = states[:, k + 1]
+            constraints += [
+                following - step(states[:, k], increments[k], track[k]),
+                following[1] - v_max[k],
+                following[2] * following[1],
+            ]
+            lower += [0.0] * STATE_SIZE + [-ca.inf, -ca.inf]
+            upper += [0.0] * STATE_SIZE + [0.0, m.max_traction_power_w]
+            cost += (
+                c.weight_position * (following[0] - p_ref[k]) ** 2
+                + c.weight_speed * (following[1] - v_ref[k]) ** 2
+                + c.weight_force * following[2] ** 2
+                + c.weight_force_rate * increments[k] ** 2
+            )
+        variables = ca.vertcat(ca.reshape(states, -1, 1), ca.reshape(increments, -1, 1))
+        problem: dict[str, Any] = {
+            "x": variables,
+            "f": cost,
+            "g": ca.vertcat(*constraints),
+            "p": parameters,
+        }
+        state_low = [-ca.inf, 0.0, -m.max_brake_force_n]
+        state_high = [ca.inf, MAX_SPEED_MPS, m.max_traction_force_n]
+        bounds = {
+            "lbx": state_low * (n + 1) + [-c.max_force_step_n] * n,
+            "ubx": state_high * (n + 1) + [c.max_force_step_n] * n,
+            "lbg": lower,
+            "ubg": upper,
+        }
+        return ca.nlpsol("nmpc", c.solver, problem, _solver_options(c)), bounds
+
+    def reset(self) -> None:
+        """Forget the warm start and the previous plan (after a mode change)."""
+        self._guess = None
+        self._plan = np.zeros(0)
+
+    def solve(
+        self, *, position_m: float, speed_mps: float, applied_force_n: float,
+        reference: NmpcReference,
+    ) -> NmpcResult:  # fmt: skip
+        """One receding-horizon step from the measured state."""
+        n = self.config.horizon_steps
+        state = np.array([position_m, max(speed_mps, 0.0), applied_force_n])
+        parameters = np.concatenate(
+            [state, reference.position_m, reference.speed_mps, reference.max_speed_mps,
+             reference.track_force_n]
+        )  # fmt: skip
+        started = time.perf_counter()
+        try:
+            solution = self._solver(x0=self._initial_guess(state), p=parameters, **self._bounds)
+            success = bool(self._solver.stats()["success"])
+        except RuntimeError:
+            solution, success = None, False
+        elapsed = time.perf_counter() - started
+        self.stats.solves += 1
+        self.stats.solve_times_s.append(elapsed)
+        if not success or solution is None:
+            return self._fallback(elapsed)
+        values = np.asarray(solution["x"], dtype=float).ravel()
+        states = values[: STATE_SIZE * (n + 1)].reshape(n + 1, STATE_SIZE)
+        self._guess = values
+        self._plan = states[2:, 2]
+        return NmpcResult(
+            force_n=float(states[1, 2]), success=True, fallback=False, solve_time_s=elapsed,
+            predicted_speed_mps=states[1:, 1], predicted_force_n=states[1:, 2],
+        )  # fmt: skip
+
+    def _initial_guess(self, state: FloatArray) -> FloatArray:
+        n = self.config.horizon_steps
+        if self._guess is None:
+            guess = np.zeros(self._variables)
+            guess[: STATE_SIZE * (n + 1)] = np.tile(state, n + 1)
+            return guess
+        states = self._guess[: STATE_SIZE * (n + 1)].reshape(n + 1, STATE_SIZE)
+        increments = self._guess[STATE_SIZE * (n + 1) :]
+        shifted_states = np.vstack([state, states[2:], states[-1:]])
+        shifted_increments = np.concatenate([increments[1:], [0.0]])
+        return np.concatenate([shifted_states.ravel(), shifted_increments])
+
+    def _fallback(self, elapsed: float) -> NmpcResult:
+        """The rest of the previous feasible plan, else full service braking."""
+        self.stats.failures += 1
+        self._guess = None
+        if self._plan.size:
+            force = float(self._plan[0])
+            self._plan = self._plan[1:]
+        else:
+            force = -self.model.max_brake_force_n
+        return NmpcResult(
+            force_n=force, success=False, fallback=True, solve_time_s=elapsed,
+            predicted_speed_mps=np.zeros(0), predicted_force_n=np.zeros(0),
+        )  # fmt: skip
+
+
+def _solver_options(config: NmpcConfig) -> dict[str, Any]:
+    if config.solver == "ipopt":
+        return {
+            "print_time": False,
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "ipopt.max_iter": max(config.max_iterations, 100),
+        }
+    return {
+        "qpsol": "qrqp",
+        # The power constraint u·v makes the Lagrangian's Hessian indefinite; qrqp needs a
+        # convex QP, so negative eigenvalues are clipped.
+        "convexify_strategy": "eigen-clip",
+        "max_iter": config.max_iterations,
+        "print_header": False,
+        "print_iteration": False,
+        "print_time": False,
+        "print_status": False,
+        "error_on_fail": False,
+        "qpsol_options": {"print_iter": False, "print_header": False, "error_on_fail": False},
+    }

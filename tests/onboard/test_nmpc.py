@@ -1,0 +1,128 @@
+"""The NMPC autonomous-driving controller, in closed loop on the point-mass plant."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from onboard.adf.nmpc import NmpcConfig, NmpcController, NmpcReference
+from onboard.plant import URV_PARAMETERS, PointMassModel
+
+N, DT = 50, 0.2
+TARGET_MPS = 40 / 3.6
+RAMP_MPS2 = 0.5
+RAMP_END_S = TARGET_MPS / RAMP_MPS2
+
+
+def _reference(times_s: np.ndarray, cap_mps: float = TARGET_MPS + 0.3) -> NmpcReference:
+    speed = np.minimum(RAMP_MPS2 * times_s, TARGET_MPS)
+    position = np.where(
+        times_s < RAMP_END_S,
+        0.5 * RAMP_MPS2 * times_s**2,
+        0.5 * RAMP_MPS2 * RAMP_END_S**2 + TARGET_MPS * (times_s - RAMP_END_S),
+    )
+    return NmpcReference(position, speed, np.full(N, cap_mps), np.zeros(N))
+
+
+def _mismatched_plant() -> PointMassModel:
+    """The truth differs from the controller's model: mass +5 %, Davis ±10 %."""
+    p = URV_PARAMETERS
+    return PointMassModel(
+        dataclasses.replace(
+            p, mass_kg=p.mass_kg * 1.05, davis_a_n=p.davis_a_n * 1.1,
+            davis_b_n_per_mps=p.davis_b_n_per_mps * 0.9,
+            davis_c_n_per_mps2=p.davis_c_n_per_mps2 * 1.1,
+        )
+    )  # fmt: skip
+
+
+def test_tracks_the_reference_despite_model_mismatch() -> None:
+    controller = NmpcController(URV_PARAMETERS)
+    plant = _mismatched_plant()
+    speed_errors, position_errors = [], []
+    for k in range(500):  # 100 s
+        now = k * DT
+        reference = _reference(now + np.arange(1, N + 1) * DT)
+        result = controller.solve(
+            position_m=plant.position_m, speed_mps=plant.speed_mps,
+            applied_force_n=plant.applied_force_n, reference=reference,
+        )  # fmt: skip
+        assert result.success
+        for _ in range(20):
+            plant.step(0.01, result.force_n)
+        if now > 40.0:
+            truth = _reference(np.array([now + DT]))
+            speed_errors.append(plant.speed_mps - truth.speed_mps[0])
+            position_errors.append(plant.position_m - truth.position_m[0])
+    speed_rms_kmh = float(np.sqrt(np.mean(np.square(speed_errors)))) * 3.6
+    assert speed_rms_kmh <= 0.5
+    assert max(abs(e) for e in position_errors) <= 1.0
+    assert plant.speed_mps <= TARGET_MPS + 0.3
+    assert controller.stats.failures == 0
+
+
+def test_prediction_respects_speed_force_and_power_limits() -> None:
+    controller = NmpcController(URV_PARAMETERS)
+    times = np.arange(1, N + 1) * DT
+    reference = NmpcReference(
+        position_m=30.0 * times, speed_mps=np.full(N, 30.0), max_speed_mps=np.full(N, 25.0),
+        track_force_n=np.zeros(N),
+    )  # fmt: skip
+    result = controller.solve(
+        position_m=0.0, speed_mps=20.0, applied_force_n=0.0, reference=reference
+    )
+    assert result.success
+    assert np.all(result.predicted_speed_mps <= 25.0 + 1e-6)
+    assert np.all(result.predicted_force_n <= URV_PARAMETERS.max_traction_force_n + 1e-6)
+    power = result.predicted_force_n * result.predicted_speed_mps
+    assert np.all(power <= URV_PARAMETERS.max_traction_power_w * (1 + 1e-6))
+    assert np.all(np.abs(np.diff(result.predicted_force_n)) <= NmpcConfig().max_force_step_n + 1e-6)
+
+
+def _infeasible() -> NmpcReference:
+    """Asks to be below 1 m/s in one step from 20 m/s: no force can do it."""
+    return NmpcReference(np.zeros(N), np.zeros(N), np.full(N, 1.0), np.zeros(N))
+
+
+def test_a_failed_solve_without_a_plan_brakes() -> None:
+    controller = NmpcController(URV_PARAMETERS)
+    result = controller.solve(
+        position_m=0.0, speed_mps=20.0, applied_force_n=0.0, reference=_infeasible()
+    )
+    assert result.fallback and not result.success
+    assert result.force_n == -URV_PARAMETERS.max_brake_force_n
+    assert controller.stats.failures == 1
+
+
+def test_a_failed_solve_follows_the_previous_plan() -> None:
+    controller = NmpcController(URV_PARAMETERS)
+    good = controller.solve(
+        position_m=0.0,
+        speed_mps=20.0,
+        applied_force_n=0.0,
+        reference=_reference(np.arange(1, N + 1) * DT, 30.0),
+    )
+    assert good.success
+    failed = controller.solve(
+        position_m=4.0, speed_mps=20.0, applied_force_n=good.force_n, reference=_infeasible()
+    )
+    assert failed.fallback
+    assert failed.force_n == pytest.approx(float(good.predicted_force_n[1]))
+    assert controller.stats.failures == 1
+
+
+def test_ipopt_agrees_with_the_sqp_configuration() -> None:
+    times = np.arange(1, N + 1) * DT
+    reference = _reference(times + 10.0)
+    results = []
+    for solver in ("sqpmethod", "ipopt"):
+        controller = NmpcController(URV_PARAMETERS, NmpcConfig(solver=solver))  # type: ignore[arg-type]
+        results.append(
+            controller.solve(
+                position_m=25.0, speed_mps=5.0, applied_force_n=0.0, reference=reference
+            )
+        )
+    assert all(result.success for result in results)
+    assert results[0].force_n == pytest.approx(results[1].force_n, rel=1e-3, abs=5.0)
