@@ -98,3 +98,24 @@ def test_rd_controller_brings_the_vehicle_to_a_stop() -> None:
             )  # fmt: skip
         model.step(0.01, demand)
     assert model.speed_mps == 0.0
+
+
+def test_gain_table_interpolates_and_holds_at_the_ends() -> None:
+    from onboard.adf.rd_controller import GainPoint, RemoteDrivingGains
+
+    gains = RemoteDrivingGains(
+        table=(GainPoint(0.0, 100.0, 10.0), GainPoint(10.0, 50.0, 30.0, 2.0))
+    )
+    assert gains.at(-1.0) == (100.0, 10.0, 0.0)
+    assert gains.at(5.0) == pytest.approx((75.0, 20.0, 1.0))
+    assert gains.at(99.0) == (50.0, 30.0, 2.0)
+
+
+def test_align_gives_a_bumpless_start() -> None:
+    controller = RemoteDrivingController(mass_kg=P.mass_kg, rolling_coefficient=0.002)
+    controller.align(7_500.0, speed_mps=12.0, gradient_permille=3.0)
+    first = controller.step(
+        0.1, target_speed_mps=12.0, speed_mps=12.0, gradient_permille=3.0,
+        force_limits_n=(-15_000.0, 30_000.0),
+    )  # fmt: skip
+    assert first == pytest.approx(7_500.0, abs=1.0)
