@@ -40,6 +40,8 @@ test: lint typecheck pytest
 
 bench: $(VENV)/.installed-test
 	$(BIN)/ato bench zenoh
+	$(BIN)/ato bench trackdb
+	$(BIN)/ato bench plant
 
 clean:
 	rm -rf $(VENV) .ato .mypy_cache .pytest_cache .ruff_cache

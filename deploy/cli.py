@@ -132,6 +132,16 @@ def bench_trackdb(
     run(count=count)
 
 
+@bench_app.command("plant")
+def bench_plant(
+    distance_km: Annotated[float, typer.Option(help="Mission length for the bogie model.")] = 200.0,
+) -> None:
+    """Bogie-model real-time factor over the 200 km mission; point-mass step cost."""
+    from deploy.bench_plant import bench_plant as run
+
+    run(distance_km=distance_km)
+
+
 @bench_app.command("zenoh")
 def bench_zenoh(
     count: Annotated[int, typer.Option(help="Commands per measurement.")] = 2000,

@@ -31,6 +31,9 @@ __all__ = ["NmpcConfig", "NmpcController", "NmpcReference", "NmpcResult", "NmpcS
 FloatArray = npt.NDArray[np.float64]
 STATE_SIZE = 3
 MAX_SPEED_MPS = 100.0
+KN = 1000.0
+"""Forces are in kN inside the NLP and positions relative to the measured one: a well-scaled
+problem converges in a few SQP iterations even from a cold start."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -45,8 +48,13 @@ class NmpcConfig:
     """ω3 [1/N²]"""
     weight_force_rate: float = 1e-6
     """ω4 [1/N²] on the increment per step"""
-    max_force_step_n: float = 5_000.0
-    """Largest change of u in one step [N]: a jerk bound."""
+    max_force_step_n: float = 3_000.0
+    """Largest change of u in one step [N]: with 0.2 s steps and the URV's 16 t, about
+    0.9 m/s³ of jerk."""
+    min_predicted_speed_mps: float = -1.0
+    """Lower bound on predicted speed [m/s]. The smooth model lets a braked vehicle reverse,
+    where the real one stops; a hard v ≥ 0 would make stopping on the brake infeasible within
+    the force-rate bound, so a small negative predicted speed stands for standing still."""
     solver: Literal["sqpmethod", "ipopt"] = "sqpmethod"
     max_iterations: int = 20
 
@@ -99,9 +107,9 @@ class NmpcController:
         mass = m.mass_kg * (1.0 + m.rotating_mass_factor)
 
         def rate(x: Any) -> Any:
-            v, u = x[1], x[2]
+            v, u = x[1], x[2] * KN
             resistance = m.davis_a_n + m.davis_b_n_per_mps * v + m.davis_c_n_per_mps2 * v * v
-            return ca.vertcat(v, (u - resistance - track) / mass, 0)
+            return ca.vertcat(v, (u - resistance - track * KN) / mass, 0)
 
         start = ca.vertcat(state[0], state[1], state[2] + increment)
         k1 = rate(start)
@@ -131,12 +139,12 @@ class NmpcController:
                 following[2] * following[1],
             ]
             lower += [0.0] * STATE_SIZE + [-ca.inf, -ca.inf]
-            upper += [0.0] * STATE_SIZE + [0.0, m.max_traction_power_w]
+            upper += [0.0] * STATE_SIZE + [0.0, m.max_traction_power_w / KN]
             cost += (
                 c.weight_position * (following[0] - p_ref[k]) ** 2
                 + c.weight_speed * (following[1] - v_ref[k]) ** 2
-                + c.weight_force * following[2] ** 2
-                + c.weight_force_rate * increments[k] ** 2
+                + c.weight_force * KN**2 * following[2] ** 2
+                + c.weight_force_rate * KN**2 * increments[k] ** 2
             )
         variables = ca.vertcat(ca.reshape(states, -1, 1), ca.reshape(increments, -1, 1))
         problem: dict[str, Any] = {
@@ -145,11 +153,12 @@ class NmpcController:
             "g": ca.vertcat(*constraints),
             "p": parameters,
         }
-        state_low = [-ca.inf, 0.0, -m.max_brake_force_n]
-        state_high = [ca.inf, MAX_SPEED_MPS, m.max_traction_force_n]
+        state_low = [-ca.inf, c.min_predicted_speed_mps, -m.max_brake_force_n / KN]
+        state_high = [ca.inf, MAX_SPEED_MPS, m.max_traction_force_n / KN]
+        step_kn = c.max_force_step_n / KN
         bounds = {
-            "lbx": state_low * (n + 1) + [-c.max_force_step_n] * n,
-            "ubx": state_high * (n + 1) + [c.max_force_step_n] * n,
+            "lbx": state_low * (n + 1) + [-step_kn] * n,
+            "ubx": state_high * (n + 1) + [step_kn] * n,
             "lbg": lower,
             "ubg": upper,
         }
@@ -166,10 +175,10 @@ class NmpcController:
     ) -> NmpcResult:  # fmt: skip
         """One receding-horizon step from the measured state."""
         n = self.config.horizon_steps
-        state = np.array([position_m, max(speed_mps, 0.0), applied_force_n])
+        state = np.array([0.0, max(speed_mps, 0.0), applied_force_n / KN])
         parameters = np.concatenate(
-            [state, reference.position_m, reference.speed_mps, reference.max_speed_mps,
-             reference.track_force_n]
+            [state, reference.position_m - position_m, reference.speed_mps,
+             reference.max_speed_mps, reference.track_force_n / KN]
         )  # fmt: skip
         started = time.perf_counter()
         try:
@@ -185,10 +194,11 @@ class NmpcController:
         values = np.asarray(solution["x"], dtype=float).ravel()
         states = values[: STATE_SIZE * (n + 1)].reshape(n + 1, STATE_SIZE)
         self._guess = values
-        self._plan = states[2:, 2]
+        forces_n = states[1:, 2] * KN
+        self._plan = forces_n[1:]
         return NmpcResult(
-            force_n=float(states[1, 2]), success=True, fallback=False, solve_time_s=elapsed,
-            predicted_speed_mps=states[1:, 1], predicted_force_n=states[1:, 2],
+            force_n=float(forces_n[0]), success=True, fallback=False, solve_time_s=elapsed,
+            predicted_speed_mps=states[1:, 1], predicted_force_n=forces_n,
         )  # fmt: skip
 
     def _initial_guess(self, state: FloatArray) -> FloatArray:
@@ -197,8 +207,9 @@ class NmpcController:
             guess = np.zeros(self._variables)
             guess[: STATE_SIZE * (n + 1)] = np.tile(state, n + 1)
             return guess
-        states = self._guess[: STATE_SIZE * (n + 1)].reshape(n + 1, STATE_SIZE)
+        states = self._guess[: STATE_SIZE * (n + 1)].reshape(n + 1, STATE_SIZE).copy()
         increments = self._guess[STATE_SIZE * (n + 1) :]
+        states[:, 0] -= states[1, 0]  # the new origin is where the last plan's first step ends
         shifted_states = np.vstack([state, states[2:], states[-1:]])
         shifted_increments = np.concatenate([increments[1:], [0.0]])
         return np.concatenate([shifted_states.ravel(), shifted_increments])

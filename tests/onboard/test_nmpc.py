@@ -66,8 +66,9 @@ def test_tracks_the_reference_despite_model_mismatch() -> None:
 def test_prediction_respects_speed_force_and_power_limits() -> None:
     controller = NmpcController(URV_PARAMETERS)
     times = np.arange(1, N + 1) * DT
+    # The reference asks for a little more than the ceiling allows: the ceiling wins.
     reference = NmpcReference(
-        position_m=30.0 * times, speed_mps=np.full(N, 30.0), max_speed_mps=np.full(N, 25.0),
+        position_m=25.0 * times, speed_mps=np.full(N, 26.0), max_speed_mps=np.full(N, 25.0),
         track_force_n=np.zeros(N),
     )  # fmt: skip
     result = controller.solve(

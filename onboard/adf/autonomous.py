@@ -1,0 +1,77 @@
+"""Autonomous driving (AD): the NMPC following the ODP along the line.
+
+Builds the NMPC's per-stage reference from the plan: p_ref and v_ref at each step of the horizon,
+the speed ceiling v_max from the MRSP at the reference position (never above it), and the track
+forces (gradient and curve) at the reference position, as the seed's control-oriented model
+takes them. At standstill at a stop, with the reference at rest, the brake holds the vehicle.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from onboard.adf.nmpc import NmpcController, NmpcReference, NmpcResult
+from onboard.adf.odp import OdpPlan
+from onboard.plant.point_mass import CURVE_COEFFICIENT_M, GRAVITY_MPS2, PointMassParameters
+
+__all__ = ["AutonomousDriving"]
+
+STANDSTILL_MPS = 0.05
+
+
+class AutonomousDriving:
+    """Turns the ODP and the measured state into a force demand [N]."""
+
+    def __init__(
+        self, plan: OdpPlan, model: PointMassParameters, controller: NmpcController
+    ) -> None:
+        self.plan = plan
+        self.model = model
+        self.controller = controller
+        config = controller.config
+        self._offsets_s = np.arange(1, config.horizon_steps + 1) * config.step_s
+        self.last_result: NmpcResult | None = None
+
+    def reference(self, now_s: float) -> NmpcReference:
+        track_map = self.plan.track_map
+        positions, speeds, ceilings, forces = [], [], [], []
+        for t in now_s + self._offsets_s:
+            distance, speed = self.plan.reference(float(t))
+            chainage = self.plan.chainage_m(distance)
+            positions.append(distance)
+            speeds.append(speed)
+            ceilings.append(track_map.mrsp_mps(chainage))
+            forces.append(self._track_force_n(chainage))
+        return NmpcReference(
+            np.array(positions), np.array(speeds), np.array(ceilings), np.array(forces)
+        )
+
+    def _track_force_n(self, chainage_m: float) -> float:
+        track_map = self.plan.track_map
+        weight = self.model.mass_kg * GRAVITY_MPS2
+        grade = weight * math.sin(math.atan(track_map.gradient_permille(chainage_m) / 1000.0))
+        radius = track_map.curve_radius_m(chainage_m)
+        curve = 0.0 if math.isinf(radius) else weight * CURVE_COEFFICIENT_M / radius / 1000.0
+        return grade + curve
+
+    def force_n(
+        self, now_s: float, *, distance_m: float, speed_mps: float, applied_force_n: float
+    ) -> float:
+        """The force to apply now, from the measured distance travelled and speed."""
+        target_distance, target_speed = self.plan.reference(now_s)
+        at_rest = target_speed == 0.0 and self.plan.reference(now_s + 1.0)[1] == 0.0
+        if at_rest and speed_mps < STANDSTILL_MPS and abs(distance_m - target_distance) < 1.0:
+            self.controller.reset()
+            return -self.model.max_brake_force_n
+        if speed_mps < STANDSTILL_MPS:
+            # A brake holding a stopped vehicle exerts only a reaction, which the model (made
+            # for motion) would read as a force pushing it backwards.
+            applied_force_n = max(applied_force_n, 0.0)
+        result = self.controller.solve(
+            position_m=distance_m, speed_mps=speed_mps, applied_force_n=applied_force_n,
+            reference=self.reference(now_s),
+        )  # fmt: skip
+        self.last_result = result
+        return result.force_n

@@ -1,0 +1,395 @@
+"""The planar 10-DOF bogie model of seed 003 §5: the vehicle's longitudinal truth with contact.
+
+    [M] q̈ + [C] q̇ + [K] q = Q(q, q̇, t)
+
+with the matrices of :mod:`onboard.plant.bogie_parameters`, and in Q: Polach creep forces
+(:mod:`onboard.plant.contact`), rolling-resistance and brake torques with a saturated sign,
+drag and lift, gravity along and across the track, and the motors' torques with their reaction
+on the bogie. Motors follow their torque reference through a first-order lag and are limited by
+their torque–speed curve (max torque, then max power); brake cylinders follow their pressure
+reference through a first-order lag, and the brake torque T = −k_p p sign(ω) acts between the
+axle and the bogie. The track is locally straight at the given gradient, both contact points on
+the incline; the vertical curves between gradients (radii of kilometres) are not modelled.
+
+Integration. The seed integrates with forward Euler at 1e-4 s. The wheel–rail normal contact
+(~180 Hz) and above all the creep force at low speed (a time constant of microseconds as the
+creepage's denominator approaches 0.1 m/s) make any explicit scheme crawl. We use the linearly
+implicit Euler method: per substep h,
+
+    (M + h C + h² K − h ∂Q/∂q̇) Δq̇ = h (Q − C q̇ − K (q + h q̇)),   q ← q + h (q̇ + Δq̇),
+
+with the stiff part of ∂Q/∂q̇ (creep force, brake and rolling torques, per wheelset) evaluated
+each substep. It is implicit Euler on the linear part (so L-stable) and first-order accurate.
+``integrator="forward_euler"`` gives the seed's scheme, used as the reference in the tests.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from onboard.plant.bogie_parameters import (
+    DOF,
+    URV_BOGIE_PARAMETERS,
+    BogieParameters,
+    Matrix,
+    assemble_matrices,
+)
+from onboard.plant.contact import creepage, longitudinal_creep_force, saturated_sign
+from onboard.plant.interfaces import ActuatorCommands, BogieTruth
+from onboard.plant.point_mass import GRAVITY_MPS2
+
+__all__ = ["DEFAULT_SUBSTEP_S", "BogieEnergy", "BogieModel", "Integrator"]
+
+DEFAULT_SUBSTEP_S = 0.002
+"""Largest substep [s] of the linearly implicit scheme; ``step`` splits longer steps evenly."""
+Integrator = Literal["linearly_implicit", "forward_euler"]
+
+_BOGIE_PITCH = 2
+_WHEELSETS = ((4, 5, 6), (7, 8, 9))
+"""Indices (x, z, spin) of the front and rear wheelsets in q."""
+
+
+@dataclass(frozen=True)
+class BogieEnergy:
+    """Energy bookkeeping since the model was created [J].
+
+    ``motor_work_j`` (traction minus regeneration at the wheels) equals the change of
+    ``kinetic_j`` + ``elastic_j``, less ``gravity_work_j``, plus all the dissipated terms, up to
+    the integrator's error (:meth:`residual_j`).
+    """
+
+    motor_work_j: float
+    kinetic_j: float
+    elastic_j: float
+    gravity_work_j: float
+    damping_j: float
+    creep_j: float
+    rolling_j: float
+    brake_j: float
+    aerodynamic_j: float
+    initial_mechanical_j: float
+
+    @property
+    def dissipated_j(self) -> float:
+        return self.damping_j + self.creep_j + self.rolling_j + self.brake_j + self.aerodynamic_j
+
+    def residual_j(self) -> float:
+        """Motor work not accounted for by stored energy, gravity and losses [J]."""
+        stored = self.kinetic_j + self.elastic_j - self.initial_mechanical_j
+        return self.motor_work_j - stored + self.gravity_work_j - self.dissipated_j
+
+
+class _Linearised:
+    """Per-substep generalised forces, their stiff slopes and what the bookkeeping needs."""
+
+    __slots__ = (
+        "brake",
+        "brake_slope",
+        "creep",
+        "creep_slope",
+        "drag",
+        "forces",
+        "lift",
+        "motor",
+        "normal",
+        "rolling",
+        "rolling_slope",
+        "slip",
+    )
+
+    def __init__(self) -> None:
+        self.forces = np.zeros(DOF)
+        self.creep = [0.0, 0.0]
+        self.creep_slope = [0.0, 0.0]
+        self.slip = [0.0, 0.0]
+        self.brake = [0.0, 0.0]
+        self.brake_slope = [0.0, 0.0]
+        self.rolling = [0.0, 0.0]
+        self.rolling_slope = [0.0, 0.0]
+        self.motor = [0.0, 0.0]
+        self.normal = [0.0, 0.0]
+        self.drag = 0.0
+        self.lift = 0.0
+
+
+class BogieModel:
+    """Truth of the vehicle on its bogie; ``step`` integrates, ``truth`` reports.
+
+    Parameters
+    ----------
+    parameters : BogieParameters
+    position_m : float
+        Initial position [m] of the bogie centre along the line.
+    speed_mps : float
+        Initial speed [m/s], every body moving together, wheels rolling without creep.
+    max_substep_s : float
+        Largest integration substep [s].
+    integrator : {"linearly_implicit", "forward_euler"}
+        The default, or the seed's explicit scheme (needs substeps of about 1e-4 s).
+    """
+
+    def __init__(
+        self,
+        parameters: BogieParameters = URV_BOGIE_PARAMETERS,
+        *,
+        position_m: float = 0.0,
+        speed_mps: float = 0.0,
+        max_substep_s: float = DEFAULT_SUBSTEP_S,
+        integrator: Integrator = "linearly_implicit",
+    ) -> None:
+        if max_substep_s <= 0.0:
+            raise ValueError("max_substep_s must be positive")
+        self.parameters = parameters
+        self.integrator: Integrator = integrator
+        self.max_substep_s = max_substep_s
+        self.matrices = assemble_matrices(parameters)
+        self._mass_inverse = np.linalg.inv(self.matrices.mass)
+        self._systems: dict[float, tuple[Matrix, Matrix]] = {}
+        self._origin_m = position_m
+        self._q = np.zeros(DOF)
+        self._v = np.zeros(DOF)
+        self._v[[0, 4, 7]] = speed_mps
+        self._v[[6, 9]] = speed_mps / parameters.wheel_radius_m
+        self._time_s = 0.0
+        self._acceleration_mps2 = 0.0
+        self._motor_lagged_nm = [0.0, 0.0]
+        self._pressure_pa = [0.0, 0.0]
+        self._state = _Linearised()
+        self._traction_j = 0.0
+        self._regen_j = 0.0
+        self._losses = {"damping": 0.0, "creep": 0.0, "rolling": 0.0, "brake": 0.0, "aero": 0.0}
+        self._gravity_work_j = 0.0
+        self._initial_mechanical_j = self._kinetic_j() + self._elastic_j()
+        self._evaluate(0.0, 0.0, 1.0)
+
+    # -- public -------------------------------------------------------------------------------
+
+    def step(
+        self,
+        dt_s: float,
+        commands: ActuatorCommands,
+        *,
+        gradient_permille: float = 0.0,
+        adhesion_factor: float = 1.0,
+    ) -> None:
+        """Advance by ``dt_s`` [s] under the actuator references, on a gradient [‰] (positive
+        uphill when running forwards) with μ₀ scaled by ``adhesion_factor``."""
+        if dt_s <= 0.0:
+            raise ValueError("dt_s must be positive")
+        count = max(1, math.ceil(dt_s / self.max_substep_s - 1e-9))
+        h = dt_s / count
+        angle = math.atan(gradient_permille / 1000.0)
+        sin_a, cos_a = math.sin(angle), math.cos(angle)
+        speed_before = float(self._v[0])
+        torques = (commands.motor_torque_front_nm, commands.motor_torque_rear_nm)
+        pressures = (commands.brake_pressure_front_pa, commands.brake_pressure_rear_pa)
+        substep = self._implicit if self.integrator == "linearly_implicit" else self._explicit
+        for _ in range(count):
+            self._lag_actuators(h, torques, pressures)
+            self._evaluate(sin_a, cos_a, adhesion_factor)
+            substep(h, sin_a, cos_a)
+            self._time_s += h
+        self._acceleration_mps2 = (float(self._v[0]) - speed_before) / dt_s
+        self._evaluate(sin_a, cos_a, adhesion_factor)
+
+    def truth(self) -> BogieTruth:
+        """The state and what the model did, as of the end of the last step."""
+        p = self.parameters
+        v = self._v
+        s = self._state
+        return BogieTruth(
+            time_s=self._time_s,
+            position_m=self._origin_m + float(self._q[0]),
+            speed_mps=float(v[0]),
+            acceleration_mps2=self._acceleration_mps2,
+            wheel_speed_front_radps=float(v[6]),
+            wheel_speed_rear_radps=float(v[9]),
+            wheel_radius_m=p.wheel_radius_m,
+            motor_torque_front_nm=s.motor[0],
+            motor_torque_rear_nm=s.motor[1],
+            brake_torque_front_nm=s.brake[0],
+            brake_torque_rear_nm=s.brake[1],
+            normal_force_front_n=s.normal[0],
+            normal_force_rear_n=s.normal[1],
+            creepage_front=creepage(s.slip[0], float(v[4])),
+            creepage_rear=creepage(s.slip[1], float(v[7])),
+            traction_energy_j=self._traction_j,
+            regen_energy_j=self._regen_j,
+        )
+
+    def energy(self) -> BogieEnergy:
+        """Energy bookkeeping since creation, for balance checks."""
+        losses = self._losses
+        return BogieEnergy(
+            motor_work_j=self._traction_j - self._regen_j,
+            kinetic_j=self._kinetic_j(),
+            elastic_j=self._elastic_j(),
+            gravity_work_j=self._gravity_work_j,
+            damping_j=losses["damping"],
+            creep_j=losses["creep"],
+            rolling_j=losses["rolling"],
+            brake_j=losses["brake"],
+            aerodynamic_j=losses["aero"],
+            initial_mechanical_j=self._initial_mechanical_j,
+        )
+
+    # -- forces -------------------------------------------------------------------------------
+
+    def _lag_actuators(
+        self, h: float, torques: tuple[float, float], pressures: tuple[float, float]
+    ) -> None:
+        p = self.parameters
+        # Exact discretisation of the first-order lags: the same response at any substep.
+        motor_blend = -math.expm1(-h / p.motor_time_constant_s)
+        brake_blend = -math.expm1(-h / p.brake_time_constant_s)
+        for axle in (0, 1):
+            self._motor_lagged_nm[axle] += (
+                torques[axle] - self._motor_lagged_nm[axle]
+            ) * motor_blend
+            reference = min(max(pressures[axle], 0.0), p.brake_max_pressure_pa)
+            self._pressure_pa[axle] += (reference - self._pressure_pa[axle]) * brake_blend
+
+    def _motor_torque_nm(self, axle: int, wheel_speed_radps: float) -> float:
+        """Lagged reference limited by the torque–speed curve (max torque, then max power)."""
+        p = self.parameters
+        limit = p.motor_max_torque_nm
+        speed = abs(wheel_speed_radps)
+        if speed * limit > p.motor_max_power_w:
+            limit = p.motor_max_power_w / speed
+        return min(max(self._motor_lagged_nm[axle], -limit), limit)
+
+    def _evaluate(self, sin_a: float, cos_a: float, adhesion_factor: float) -> None:
+        """Fill ``self._state`` with Q and its stiff slopes at the current state."""
+        p = self.parameters
+        m = self.matrices
+        s = self._state
+        q = self._q.tolist()
+        v = self._v.tolist()
+        radius = p.wheel_radius_m
+        beta = p.sign_saturation_radps
+        forces = [0.0] * DOF
+        for axle, (ix, iz, ispin) in enumerate(_WHEELSETS):
+            normal = (
+                p.static_axle_load_n
+                - p.contact_stiffness_n_per_m * q[iz]
+                - p.contact_damping_ns_per_m * v[iz]
+            )
+            slip = v[ix] - radius * v[ispin]
+            creep, creep_slope = longitudinal_creep_force(
+                slip, v[ix], normal, p.contact, adhesion_factor
+            )
+            relative_spin = v[ispin] + v[_BOGIE_PITCH]
+            brake_gain = p.brake_gain_m3 * self._pressure_pa[axle]
+            brake = -brake_gain * saturated_sign(relative_spin, beta)
+            rolling_gain = max(normal, 0.0) * radius * p.rolling_resistance_coefficient
+            rolling = -rolling_gain * saturated_sign(v[ispin], beta)
+            motor = self._motor_torque_nm(axle, v[ispin])
+            forces[ix] += creep
+            forces[ispin] += motor + brake + rolling - radius * creep
+            forces[_BOGIE_PITCH] += motor + brake
+            s.creep[axle], s.creep_slope[axle], s.slip[axle] = creep, creep_slope, slip
+            s.brake[axle] = brake
+            s.brake_slope[axle] = -brake_gain / beta if abs(relative_spin) < beta else 0.0
+            s.rolling[axle] = rolling
+            s.rolling_slope[axle] = -rolling_gain / beta if abs(v[ispin]) < beta else 0.0
+            s.motor[axle], s.normal[axle] = motor, normal
+        air_speed = float(m.carbody_longitudinal @ self._v)
+        dynamic = 0.5 * p.air_density_kgpm3 * air_speed * abs(air_speed)
+        s.drag = dynamic * p.drag_area_m2
+        s.lift = abs(dynamic) * p.lift_area_m2
+        forces[1] += s.lift
+        s.forces = (
+            np.array(forces)
+            - s.drag * m.carbody_longitudinal
+            - (GRAVITY_MPS2 * sin_a) * m.gravity_along_track
+            + (GRAVITY_MPS2 * (cos_a - 1.0)) * m.gravity_normal
+        )
+
+    # -- integration --------------------------------------------------------------------------
+
+    def _system(self, h: float) -> tuple[Matrix, Matrix]:
+        """(M + hC + h²K, C + hK) for this substep, computed once per substep length."""
+        cached = self._systems.get(h)
+        if cached is None:
+            m = self.matrices
+            cached = (
+                m.mass + h * m.damping + h * h * m.stiffness,
+                m.damping + h * m.stiffness,
+            )
+            self._systems[h] = cached
+        return cached
+
+    def _implicit(self, h: float, sin_a: float, cos_a: float) -> None:
+        base, damping_h = self._system(h)
+        system = base.copy()
+        s = self._state
+        radius = self.parameters.wheel_radius_m
+        for axle, (ix, _, ispin) in enumerate(_WHEELSETS):
+            creep = h * s.creep_slope[axle]
+            brake = h * s.brake_slope[axle]
+            system[ix, ix] -= creep
+            system[ix, ispin] += radius * creep
+            system[ispin, ix] += radius * creep
+            system[ispin, ispin] -= radius * radius * creep + brake + h * s.rolling_slope[axle]
+            system[ispin, _BOGIE_PITCH] -= brake
+            system[_BOGIE_PITCH, ispin] -= brake
+            system[_BOGIE_PITCH, _BOGIE_PITCH] -= brake
+        rhs = h * (s.forces - damping_h @ self._v - self.matrices.stiffness @ self._q)
+        velocity = self._v + np.linalg.solve(system, rhs)
+        self._account(h, velocity, sin_a, cos_a, linearised=True)
+        self._v = velocity
+        self._q = self._q + h * velocity
+
+    def _explicit(self, h: float, sin_a: float, cos_a: float) -> None:
+        m = self.matrices
+        s = self._state
+        acceleration = self._mass_inverse @ (s.forces - m.damping @ self._v - m.stiffness @ self._q)
+        velocity = self._v + h * acceleration
+        self._account(h, self._v, sin_a, cos_a, linearised=False)
+        self._q = self._q + h * self._v
+        self._v = velocity
+
+    def _account(
+        self, h: float, velocity: Matrix, sin_a: float, cos_a: float, *, linearised: bool
+    ) -> None:
+        """Add this substep's work of every force, evaluated with the substep's velocities."""
+        s = self._state
+        m = self.matrices
+        radius = self.parameters.wheel_radius_m
+        v = velocity.tolist()
+        old = self._v.tolist()
+        losses = self._losses
+        weight = 1.0 if linearised else 0.0
+        for axle, (ix, _, ispin) in enumerate(_WHEELSETS):
+            relative_spin = v[ispin] + v[_BOGIE_PITCH]
+            work = s.motor[axle] * relative_spin * h
+            if work >= 0.0:
+                self._traction_j += work
+            else:
+                self._regen_j -= work
+            slip = v[ix] - radius * v[ispin]
+            creep = s.creep[axle] + weight * s.creep_slope[axle] * (slip - s.slip[axle])
+            losses["creep"] -= creep * slip * h
+            old_relative = old[ispin] + old[_BOGIE_PITCH]
+            brake_change = s.brake_slope[axle] * (relative_spin - old_relative)
+            losses["brake"] -= (s.brake[axle] + weight * brake_change) * relative_spin * h
+            rolling_change = s.rolling_slope[axle] * (v[ispin] - old[ispin])
+            losses["rolling"] -= (s.rolling[axle] + weight * rolling_change) * v[ispin] * h
+        air_speed = float(m.carbody_longitudinal @ velocity)
+        losses["aero"] += (s.drag * air_speed - s.lift * v[1]) * h
+        losses["damping"] += float(velocity @ m.damping @ velocity) * h
+        gravity = (
+            -(GRAVITY_MPS2 * sin_a) * m.gravity_along_track
+            + (GRAVITY_MPS2 * (cos_a - 1.0)) * m.gravity_normal
+        )
+        self._gravity_work_j += float(gravity @ velocity) * h
+
+    def _kinetic_j(self) -> float:
+        return 0.5 * float(self._v @ self.matrices.mass @ self._v)
+
+    def _elastic_j(self) -> float:
+        return 0.5 * float(self._q @ self.matrices.stiffness @ self._q)
