@@ -149,13 +149,13 @@ URV_BOGIE_PARAMETERS = BogieParameters(
     # 1e-4 s stable as the seed reports.
     contact_stiffness_n_per_m=2.4e9,
     contact_damping_ns_per_m=3.9e5,
-    # Davis B of URV_PARAMETERS (10 N per m/s) as viscous losses in the two axles' bearings
+    # Davis B of URV_PARAMETERS (3 N per m/s) as viscous losses in the two axles' bearings
     # and gearboxes: torque c ω, force c v / R² per axle.
     bearing_damping_nms_per_rad=URV_PARAMETERS.davis_b_n_per_mps * _RADIUS_M**2 / 2.0,
-    # Davis A of URV_PARAMETERS (300 N on 15 t) as rolling resistance f_v = A / (m g).
+    # Davis A of URV_PARAMETERS (150 N on 15 t) as rolling resistance f_v = A / (m g).
     rolling_resistance_coefficient=URV_PARAMETERS.davis_a_n
     / (URV_PARAMETERS.mass_kg * GRAVITY_MPS2),
-    # Davis C of URV_PARAMETERS: ½ ρ C_d S = 2.4 N/(m/s)² with ρ = 1.2 kg/m³. The lift area is
+    # Davis C of URV_PARAMETERS: ½ ρ C_d S = 0.40 N/(m/s)² with ρ = 1.2 kg/m³. The lift area is
     # assumed (the seed's CFD value is not given): a small upwards lift.
     drag_area_m2=2.0 * URV_PARAMETERS.davis_c_n_per_mps2 / 1.2,
     lift_area_m2=0.4,

@@ -6,15 +6,14 @@ torques over the wheel radius minus the brakes'), and the drives' mechanical pow
 wheel speed) feed :class:`~onboard.plant.powertrain.Powertrain`. The point mass has no slip,
 so both wheel speeds are v / r and the fused speed is the true speed.
 
-The vehicle's resistance is calibrated for these missions (``SEED003_MISSION_VEHICLE``):
-seed 003 §7.2 ends in P_drives = P_RE = 100 kW while holding 200 km/h, which needs a cruise
-load at 200 km/h below the range extender's 100 kW. ``URV_PARAMETERS``' Davis terms ask for
-about 460 kW there, beyond its own 400 kW envelope, so they cannot reproduce that result.
+The vehicle is the URV (``SEED003_MISSION_VEHICLE`` is ``URV_PARAMETERS``): seed 003 §7.2 ends
+in P_drives = P_RE = 100 kW while holding 200 km/h, so the URV's resistance was chosen to keep
+the cruise load at 200 km/h below the range extender's 100 kW.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -26,15 +25,8 @@ from onboard.vcu.unit import VehicleControlUnit
 
 __all__ = ["SEED003_MISSION_VEHICLE", "MissionRecord", "run_energy_mission"]
 
-SEED003_MISSION_VEHICLE = replace(
-    URV_PARAMETERS,
-    # 1 daN/t for steel wheels, a little friction, and ½ρ C_d S with C_d S ≈ 0.6 m² for an
-    # SUV-sized body (C_d S ≈ 0.67 m²): 1.55 kN and 86 kW at 200 km/h, 94 kW at the drives,
-    # 99 kW on the bus with the auxiliaries, just below the range extender's 100 kW.
-    davis_a_n=150.0,
-    davis_b_n_per_mps=3.0,
-    davis_c_n_per_mps2=0.40,
-)
+SEED003_MISSION_VEHICLE = URV_PARAMETERS
+"""The URV itself: its resistance was chosen so that these missions hold (see point_mass.py)."""
 
 FloatArray = npt.NDArray[np.float64]
 
