@@ -1,0 +1,137 @@
+"""Traction energy of a speed profile, and the offline energy-optimal reference for a leg.
+
+``plan_traction_energy_j`` runs a plan's reference through the point-mass model backwards: the
+force a profile needs is M(1 + ρ) dv/dt + resistance + track forces, and the traction energy is
+the positive part of force × distance. ``optimal_leg`` is the best any planner could do for a leg
+(the reference (b) of the ADF issue): direct collocation over distance with casadi and IPOPT on
+the same model, limits and arrival time, minimising traction energy at the wheel:
+
+    min Σ f_i Δs   s.t.  M(1 + ρ)(v_{i+1}² − v_i²)/2 = (f_i − b_i − R(v̄_i) − F_track,i) Δs,
+                         Σ 2Δs / (v_i + v_{i+1}) = T,  v_i ≤ min(MRSP, cap),
+                         0 ≤ f_i ≤ F_max,  f_i v̄_i ≤ P_max,  0 ≤ b_i,
+                         |dv/dt| ≤ a_max,  v_0 = v_K = 0.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import casadi as ca
+import numpy as np
+import numpy.typing as npt
+
+from onboard.adf.odp import MAX_ACCELERATION_MPS2, OdpPlan
+from onboard.plant.point_mass import CURVE_COEFFICIENT_M, GRAVITY_MPS2, PointMassParameters
+from trackdb import TrackMap
+
+__all__ = ["OptimalLeg", "optimal_leg", "plan_traction_energy_j", "track_force_n"]
+
+FloatArray = npt.NDArray[np.float64]
+MIN_AVERAGE_SPEED_MPS = 0.05
+
+
+def track_force_n(track_map: TrackMap, model: PointMassParameters, chainage_m: float) -> float:
+    """Gradient and curve forces [N] on the vehicle at a chainage."""
+    weight = model.mass_kg * GRAVITY_MPS2
+    grade = weight * math.sin(math.atan(track_map.gradient_permille(chainage_m) / 1000.0))
+    radius = track_map.curve_radius_m(chainage_m)
+    curve = 0.0 if math.isinf(radius) else weight * CURVE_COEFFICIENT_M / radius / 1000.0
+    return grade + curve
+
+
+def plan_traction_energy_j(
+    plan: OdpPlan, model: PointMassParameters, *, step_s: float = 0.1
+) -> float:
+    """Traction energy at the wheel [J] that following the plan exactly would take."""
+    mass = model.mass_kg * (1.0 + model.rotating_mass_factor)
+    times = np.arange(0.0, plan.end_s + step_s, step_s)
+    samples = np.array([plan.reference(float(t)) for t in times])
+    distances, speeds = samples[:, 0], samples[:, 1]
+    energy = 0.0
+    for i in range(len(times) - 1):
+        ds = distances[i + 1] - distances[i]
+        if ds <= 0.0:
+            continue
+        v = 0.5 * (speeds[i] + speeds[i + 1])
+        acceleration = (speeds[i + 1] - speeds[i]) / step_s
+        resistance = model.davis_a_n + model.davis_b_n_per_mps * v + model.davis_c_n_per_mps2 * v**2
+        chainage = plan.chainage_m(0.5 * (distances[i] + distances[i + 1]))
+        force = mass * acceleration + resistance + track_force_n(plan.track_map, model, chainage)
+        energy += max(force, 0.0) * ds
+    return energy
+
+
+@dataclass(frozen=True)
+class OptimalLeg:
+    distances_m: FloatArray
+    speeds_mps: FloatArray
+    traction_forces_n: FloatArray
+    brake_forces_n: FloatArray
+    traction_energy_j: float
+    duration_s: float
+
+
+def optimal_leg(
+    track_map: TrackMap,
+    model: PointMassParameters,
+    *,
+    start_chainage_m: float,
+    distance_m: float,
+    duration_s: float,
+    cap_mps: float | None = None,
+    step_m: float = 10.0,
+    max_acceleration_mps2: float = MAX_ACCELERATION_MPS2,
+) -> OptimalLeg:
+    """The energy-optimal run of one leg, standstill to standstill, in ``duration_s`` [s]."""
+    count = max(4, math.ceil(distance_m / step_m))
+    ds = distance_m / count
+    chainages = [start_chainage_m + (i + 0.5) * ds for i in range(count)]
+    nodes = [start_chainage_m + i * ds for i in range(count + 1)]
+    ceiling = [min(track_map.mrsp_mps(c), cap_mps or math.inf) for c in nodes]
+    track = [track_force_n(track_map, model, c) for c in chainages]
+    mass = model.mass_kg * (1.0 + model.rotating_mass_factor)
+
+    opti = ca.Opti()
+    v = opti.variable(count + 1)
+    traction = opti.variable(count)
+    brake = opti.variable(count)
+    opti.subject_to(v[0] == 0)
+    opti.subject_to(v[count] == 0)
+    opti.subject_to(opti.bounded(0, v, ca.DM(ceiling)))
+    opti.subject_to(opti.bounded(0, traction, model.max_traction_force_n))
+    opti.subject_to(opti.bounded(0, brake, model.max_brake_force_n))
+    average = (v[:-1] + v[1:]) / 2
+    opti.subject_to(average >= MIN_AVERAGE_SPEED_MPS)
+    resistance = (
+        model.davis_a_n + model.davis_b_n_per_mps * average + model.davis_c_n_per_mps2 * average**2
+    )
+    net = traction - brake - resistance - ca.DM(track)
+    opti.subject_to(mass * (v[1:] ** 2 - v[:-1] ** 2) / 2 == net * ds)
+    opti.subject_to(traction * average <= model.max_traction_power_w)
+    opti.subject_to(opti.bounded(-max_acceleration_mps2, net / mass, max_acceleration_mps2))
+    opti.subject_to(ca.sum1(ds / average) == duration_s)
+    opti.minimize(ca.sum1(traction) * ds + 1e-6 * ca.sumsqr(brake) * ds)
+    cruise = distance_m / duration_s * 1.3
+    opti.set_initial(v, _initial_speeds(count, cruise, ceiling))
+    opti.set_initial(traction, model.davis_a_n)
+    opti.solver("ipopt", _ipopt_options())
+    solution = opti.solve()
+    speeds = np.asarray(solution.value(v), dtype=float)
+    forces = np.asarray(solution.value(traction), dtype=float)
+    brakes = np.asarray(solution.value(brake), dtype=float)
+    return OptimalLeg(
+        distances_m=np.linspace(0.0, distance_m, count + 1), speeds_mps=speeds,
+        traction_forces_n=forces, brake_forces_n=brakes,
+        traction_energy_j=float(forces.sum() * ds), duration_s=duration_s,
+    )  # fmt: skip
+
+
+def _initial_speeds(count: int, cruise_mps: float, ceiling: list[float]) -> FloatArray:
+    shape = np.sin(np.linspace(0.0, math.pi, count + 1)) ** 0.5
+    return np.minimum(shape * cruise_mps, np.array(ceiling) * 0.95)
+
+
+def _ipopt_options() -> dict[str, Any]:
+    return {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.max_iter": 3000}
