@@ -42,6 +42,7 @@ bench: $(VENV)/.installed-test
 	$(BIN)/ato bench zenoh
 	$(BIN)/ato bench trackdb
 	$(BIN)/ato bench plant
+	$(BIN)/ato bench adf
 
 clean:
 	rm -rf $(VENV) .ato .mypy_cache .pytest_cache .ruff_cache
