@@ -15,6 +15,7 @@ import math
 import random
 import statistics
 import time
+from pathlib import Path
 
 from rich.console import Console
 from rich.table import Table
@@ -128,6 +129,7 @@ def bench_plant(
     max_speed_kmh: float = MISSION_SPEED_KMH,
     point_mass_steps: int = 100_000,
     seed: int = 20240603,
+    plots_dir: Path | None = None,
 ) -> dict[str, dict[str, float]]:
     """Run both measurements, print a table, return the figures.
 
@@ -141,6 +143,10 @@ def bench_plant(
         Point-mass steps timed one by one.
     seed : int
         Seed of the point-mass model's random force demands.
+    plots_dir : Path or None
+        When given, also run seed 003 §7's results (1)–(4) (energy missions of
+        ``distance_km`` on the point mass, manoeuvres on the bogie model with the VCU) and
+        write their PNG figures there (:mod:`deploy.plant_plots`).
 
     Returns
     -------
@@ -181,4 +187,9 @@ def bench_plant(
         f"Bogie model stepped every {PLANT_STEP_S * 1000:g} ms (substeps ≤"
         f" {DEFAULT_SUBSTEP_S * 1000:g} ms), driven by a stand-in speed loop, not the VCU."
     )
+    if plots_dir is not None:
+        from deploy.plant_plots import write_plots
+
+        for path in write_plots(plots_dir, distance_km=distance_km):
+            console.print(f"wrote {path}")
     return results

@@ -135,11 +135,23 @@ def bench_trackdb(
 @bench_app.command("plant")
 def bench_plant(
     distance_km: Annotated[float, typer.Option(help="Mission length for the bogie model.")] = 200.0,
+    plots: Annotated[
+        Path | None,
+        typer.Option(help="Also write seed 003 §7 result figures (PNG) into this directory."),
+    ] = None,
 ) -> None:
     """Bogie-model real-time factor over the 200 km mission; point-mass step cost."""
     from deploy.bench_plant import bench_plant as run
 
-    run(distance_km=distance_km)
+    run(distance_km=distance_km, plots_dir=plots)
+
+
+@bench_app.command("adf")
+def bench_adf() -> None:
+    """Plan energies (LSPB, ours, optimum) and NMPC solve times (ours against IPOPT)."""
+    from deploy.bench_adf import bench_adf as run
+
+    run()
 
 
 @bench_app.command("zenoh")

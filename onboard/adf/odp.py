@@ -20,14 +20,17 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 from trackdb import TrackMap
 
 __all__ = [
     "InfeasibleLegError",
+    "LegProfile",
     "LspbSegment",
     "OdpLeg",
     "OdpPlan",
+    "leg_speed_limit_mps",
     "lspb_segment",
     "plan_legs",
 ]
@@ -96,13 +99,25 @@ def lspb_segment(
     return LspbSegment(distance_m, duration_s, a, blend)
 
 
+class LegProfile(Protocol):
+    """A standstill-to-standstill profile of one leg (an LSPB, or an energy-minimised one)."""
+
+    @property
+    def distance_m(self) -> float: ...
+
+    @property
+    def duration_s(self) -> float: ...
+
+    def at(self, t_s: float) -> tuple[float, float]: ...
+
+
 @dataclass(frozen=True)
 class OdpLeg:
-    """A leg in the plan: depart at ``start_s`` from ``start_distance_m``, LSPB to the stop."""
+    """A leg in the plan: depart at ``start_s`` from ``start_distance_m``, run to the stop."""
 
     start_s: float
     start_distance_m: float
-    segment: LspbSegment
+    segment: LegProfile
 
     @property
     def end_s(self) -> float:
@@ -161,7 +176,7 @@ def plan_legs(
     depart_s, depart_m = 0.0, 0.0
     for index, (distance_m, arrival_s, departure_s) in enumerate(stops):
         length = distance_m - depart_m
-        limit = _leg_limit(track_map, start_chainage_m + depart_m, length)
+        limit = leg_speed_limit_mps(track_map, start_chainage_m + depart_m, length)
         if cap_mps is not None:
             limit = min(limit, cap_mps)
         try:
@@ -177,7 +192,7 @@ def plan_legs(
     return OdpPlan(legs, start_chainage_m=start_chainage_m, track_map=track_map)
 
 
-def _leg_limit(track_map: TrackMap, start_m: float, length_m: float) -> float:
+def leg_speed_limit_mps(track_map: TrackMap, start_m: float, length_m: float) -> float:
     """The lowest MRSP [m/s] over the leg."""
     samples = max(2, math.ceil(length_m / LIMIT_SAMPLE_M) + 1)
     return min(track_map.mrsp_mps(start_m + length_m * k / (samples - 1)) for k in range(samples))

@@ -8,6 +8,15 @@ I²T the battery's thermal overload integral.
 
 from onboard.vcu.braking import BlendedBraking, BrakingSplit, electric_share
 from onboard.vcu.limits import BatteryOverload, EnergyManager, SlipperyRail, temperature_factor
+from onboard.vcu.manoeuvres import (
+    Manoeuvre,
+    ManoeuvreRecord,
+    acceleration_manoeuvre,
+    braking_manoeuvre,
+    friction_drop_manoeuvre,
+    run_manoeuvre,
+    vcu_parameters_for,
+)
 from onboard.vcu.mission import SEED003_MISSION_VEHICLE, MissionRecord, run_energy_mission
 from onboard.vcu.parameters import BrakingPhase, Limitation, VcuInputs, VcuParameters, VcuStatus
 from onboard.vcu.traction import (
@@ -22,6 +31,13 @@ __all__ = [
     "SEED003_MISSION_VEHICLE",
     "MissionRecord",
     "run_energy_mission",
+    "Manoeuvre",
+    "ManoeuvreRecord",
+    "acceleration_manoeuvre",
+    "braking_manoeuvre",
+    "friction_drop_manoeuvre",
+    "run_manoeuvre",
+    "vcu_parameters_for",
     "AxleSlipProtection",
     "BatteryOverload",
     "BlendedBraking",

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from deploy.bench_plant import bench_plant, stand_in_driver
+from deploy.plant_plots import PLOT_FILES
 
 
 def test_stand_in_driver_drives_then_brakes() -> None:
@@ -24,3 +27,16 @@ def test_bench_plant_runs_a_short_mission(capsys: pytest.CaptureFixture[str]) ->
     assert bogie["real_time_factor"] > 0.0
     assert 0.0 < results["point_mass"]["median_us"] <= results["point_mass"]["p99_us"]
     assert "Plant models" in capsys.readouterr().out
+
+
+def test_bench_plant_writes_the_seed003_plots(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    plots = tmp_path / "plots"
+    bench_plant(distance_km=0.2, max_speed_kmh=60.0, point_mass_steps=100, plots_dir=plots)
+    for name in PLOT_FILES:
+        data = (plots / name).read_bytes()
+        assert data.startswith(b"\x89PNG\r\n\x1a\n"), name
+        assert len(data) > 10_000, name
+    assert sorted(p.name for p in plots.iterdir()) == sorted(PLOT_FILES)
+    assert "wrote" in capsys.readouterr().out
