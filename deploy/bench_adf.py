@@ -8,7 +8,6 @@ traction energy of the plain LSPB plan.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 
 import numpy as np
@@ -21,6 +20,7 @@ from onboard.adf.nmpc import NmpcConfig, NmpcController
 from onboard.adf.odp import plan_legs
 from onboard.adf.odp_energy import plan_energy_legs
 from onboard.plant import URV_PARAMETERS
+from onboard.plant.point_mass import with_model_mismatch
 from trackdb import TrackMap, load_seed_line
 
 __all__ = ["bench_adf", "energy_comparison", "field_test_lap"]
@@ -39,11 +39,7 @@ def field_test_lap(solver: str) -> tuple[ClosedLoopRecord, float]:
     ring = TrackMap(load_seed_line("bologna-ring"))
     plan = plan_legs(ring, start_chainage_m=START_M, stops=FIELD_TEST_STOPS, cap_mps=CAP_MPS)
     p = URV_PARAMETERS
-    truth = dataclasses.replace(
-        p, mass_kg=p.mass_kg * 1.05, davis_a_n=p.davis_a_n * 1.1,
-        davis_b_n_per_mps=p.davis_b_n_per_mps * 0.9,
-        davis_c_n_per_mps2=p.davis_c_n_per_mps2 * 1.1,
-    )  # fmt: skip
+    truth = with_model_mismatch(p)
     controller = NmpcController(p, NmpcConfig(solver=solver))  # type: ignore[arg-type]
     started = time.perf_counter()
     record = run_autonomous_journey(

@@ -11,10 +11,17 @@ vehicle that stops is held (as by its parking brake) rather than rolling back.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
-__all__ = ["GRAVITY_MPS2", "URV_PARAMETERS", "PointMassModel", "PointMassParameters"]
+__all__ = [
+    "GRAVITY_MPS2",
+    "URV_PARAMETERS",
+    "PointMassModel",
+    "PointMassParameters",
+    "with_model_mismatch",
+]
 
 GRAVITY_MPS2 = 9.81
 CURVE_COEFFICIENT_M = 800.0
@@ -54,6 +61,23 @@ URV_PARAMETERS = PointMassParameters(
     max_brake_force_n=15_000.0,
     actuator_time_constant_s=0.3,
 )
+
+
+def with_model_mismatch(
+    parameters: PointMassParameters,
+    *,
+    mass_factor: float = 1.05,
+    davis_factors: tuple[float, float, float] = (1.1, 0.9, 1.1),
+) -> PointMassParameters:
+    """The truth a controller's model does not know exactly (the ADF issue's test case: mass
+    +5 %, Davis coefficients ±10 %)."""
+    return dataclasses.replace(
+        parameters,
+        mass_kg=parameters.mass_kg * mass_factor,
+        davis_a_n=parameters.davis_a_n * davis_factors[0],
+        davis_b_n_per_mps=parameters.davis_b_n_per_mps * davis_factors[1],
+        davis_c_n_per_mps2=parameters.davis_c_n_per_mps2 * davis_factors[2],
+    )
 
 
 class PointMassModel:

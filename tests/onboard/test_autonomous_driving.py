@@ -5,8 +5,6 @@ The seed 000 field-test journey: a lap with three stops under a 40 km/h cap.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -14,6 +12,7 @@ from onboard.adf.closed_loop import ClosedLoopRecord, Stop, run_autonomous_journ
 from onboard.adf.nmpc import NmpcController
 from onboard.adf.odp import plan_legs
 from onboard.plant import URV_PARAMETERS
+from onboard.plant.point_mass import with_model_mismatch
 from trackdb import TrackMap, load_seed_line
 
 START_M = 200.0
@@ -23,12 +22,7 @@ STOPS = [(1775.0, 300.0, 320.0), (3200.0, 550.0, 570.0), (6050.0, 1000.0, 1000.0
 
 def mismatched_urv() -> object:
     """The truth differs from the controller's model: mass +5 %, Davis ±10 %."""
-    p = URV_PARAMETERS
-    return dataclasses.replace(
-        p, mass_kg=p.mass_kg * 1.05, davis_a_n=p.davis_a_n * 1.1,
-        davis_b_n_per_mps=p.davis_b_n_per_mps * 0.9,
-        davis_c_n_per_mps2=p.davis_c_n_per_mps2 * 1.1,
-    )  # fmt: skip
+    return with_model_mismatch(URV_PARAMETERS)
 
 
 @pytest.fixture(scope="module")

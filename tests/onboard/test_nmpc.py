@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
 from onboard.adf.nmpc import NmpcConfig, NmpcController, NmpcReference
 from onboard.plant import URV_PARAMETERS, PointMassModel
+from onboard.plant.point_mass import with_model_mismatch
 
 N, DT = 50, 0.2
 TARGET_MPS = 40 / 3.6
@@ -28,14 +27,7 @@ def _reference(times_s: np.ndarray, cap_mps: float = TARGET_MPS + 0.3) -> NmpcRe
 
 def _mismatched_plant() -> PointMassModel:
     """The truth differs from the controller's model: mass +5 %, Davis ±10 %."""
-    p = URV_PARAMETERS
-    return PointMassModel(
-        dataclasses.replace(
-            p, mass_kg=p.mass_kg * 1.05, davis_a_n=p.davis_a_n * 1.1,
-            davis_b_n_per_mps=p.davis_b_n_per_mps * 0.9,
-            davis_c_n_per_mps2=p.davis_c_n_per_mps2 * 1.1,
-        )
-    )  # fmt: skip
+    return PointMassModel(with_model_mismatch(URV_PARAMETERS))
 
 
 def test_tracks_the_reference_despite_model_mismatch() -> None:
