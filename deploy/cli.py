@@ -91,6 +91,9 @@ def onboard(
     zenoh: ZenohOption = DEFAULT_ROUTER_ENDPOINT,
     line: Annotated[str, typer.Option("--line", help="Line id.")] = "bologna-ring",
     speed: Annotated[float, typer.Option("--speed", help="Simulated s per wall s.")] = 1.0,
+    fidelity: Annotated[
+        str, typer.Option("--fidelity", help="Plant: point_mass or bogie (VCU + 10-DOF bogie).")
+    ] = "point_mass",
     verbose: bool = False,
 ) -> None:
     """Run one ATO-OB process."""
@@ -99,11 +102,13 @@ def onboard(
     _logging(verbose)
     if speed <= 0:
         raise typer.BadParameter("--speed must be positive")
+    if fidelity not in ("point_mass", "bogie"):
+        raise typer.BadParameter("--fidelity must be point_mass or bogie")
     stop = threading.Event()
     with stop_on_signals(stop):
         run_onboard(
             vehicle, zenoh=ZenohSettings(connect=(zenoh,)), line_id=line, speed_factor=speed,
-            stop=stop,
+            stop=stop, fidelity=fidelity,  # type: ignore[arg-type]
         )  # fmt: skip
 
 

@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
 
-from onboard.node import OnboardNode, OnboardSettings
+from onboard.node import Fidelity, OnboardNode, OnboardSettings
 from onboard.runtime import RealTimeClock
 from protocol import ZenohSettings, open_session
 from trackdb import TrackMap, load_seed_line
@@ -72,12 +72,13 @@ def run_onboard(
     line_id: str,
     speed_factor: float,
     stop: threading.Event,
+    fidelity: Fidelity = "point_mass",
 ) -> None:
     """Run one vehicle's onboard in real time × ``speed_factor`` until ``stop`` is set."""
     track_map = TrackMap(load_seed_line(line_id))
     with open_session(zenoh) as session:
         node = OnboardNode(
-            OnboardSettings(vehicle_id=vehicle_id, line_id=line_id),
+            OnboardSettings(vehicle_id=vehicle_id, line_id=line_id, fidelity=fidelity),
             session=session,
             clock=RealTimeClock(speed_factor),
             track_map=track_map,

@@ -16,6 +16,7 @@ import logging
 import threading
 from collections import deque
 from dataclasses import dataclass
+from typing import Literal, Protocol
 
 import zenoh
 
@@ -24,6 +25,7 @@ from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.runtime import Clock, Executive
 from onboard.runtime.clock import NS_PER_S
 from onboard.track_database_manager import TrackDatabaseManager
+from onboard.vcu.vehicle import BogieVehicle
 from protocol import (
     ProtocolError,
     TypedPublisher,
@@ -44,9 +46,35 @@ from protocol.registry import (
 )
 from trackdb import TrackMap
 
-__all__ = ["OnboardNode", "OnboardSettings", "TASK_TABLE"]
+__all__ = ["Fidelity", "OnboardNode", "OnboardSettings", "Plant", "TASK_TABLE"]
 
 _log = logging.getLogger(__name__)
+
+
+Fidelity = Literal["point_mass", "bogie"]
+
+
+class Plant(Protocol):
+    """What the node needs of a plant; both fidelities provide it."""
+
+    @property
+    def position_m(self) -> float: ...
+
+    @property
+    def speed_mps(self) -> float: ...
+
+    @property
+    def acceleration_mps2(self) -> float: ...
+
+    @property
+    def applied_force_n(self) -> float: ...
+
+    def force_limits_n(self, speed_mps: float) -> tuple[float, float]: ...
+
+    def step(
+        self, dt_s: float, force_demand_n: float, *, gradient_permille: float = ...,
+        curve_radius_m: float = ...,
+    ) -> None: ...  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -70,6 +98,8 @@ class OnboardSettings:
     vehicle_id: str
     line_id: str = "bologna-ring"
     start_position_m: float = 0.0
+    fidelity: Fidelity = "point_mass"
+    """The plant: the point-mass model, or the 10-DOF bogie model behind the VCU."""
 
 
 class OnboardNode:
@@ -90,7 +120,11 @@ class OnboardNode:
         self._session = session
         self.clock = clock
         self.executive = Executive(clock)
-        self.plant = PointMassModel(URV_PARAMETERS, position_m=settings.start_position_m)
+        self.plant: Plant = (
+            BogieVehicle(position_m=settings.start_position_m)
+            if settings.fidelity == "bogie"
+            else PointMassModel(URV_PARAMETERS, position_m=settings.start_position_m)
+        )
         self.rd_controller = RemoteDrivingController(
             mass_kg=URV_PARAMETERS.mass_kg,
             rolling_coefficient=URV_PARAMETERS.davis_a_n / (URV_PARAMETERS.mass_kg * 9.81),

@@ -49,6 +49,8 @@ __all__ = [
     "braking_manoeuvre",
     "friction_drop_manoeuvre",
     "run_manoeuvre",
+    "step_powertrain",
+    "vcu_inputs",
     "vcu_parameters_for",
 ]
 
@@ -208,13 +210,14 @@ def vcu_parameters_for(
     )
 
 
-def _vcu_inputs(
-    manoeuvre: Manoeuvre, truth: BogieTruth, fused_mps: float, force_n: float, pt: Powertrain
+def vcu_inputs(
+    direction: int, truth: BogieTruth, fused_mps: float, force_n: float, pt: Powertrain
 ) -> VcuInputs:
+    """What the VCU reads over its buses: the demand, speeds, the BMS and the drives."""
     bms = pt.bms_status()
     return VcuInputs(
         force_demand_n=force_n,
-        direction=manoeuvre.direction,
+        direction=direction,
         fused_speed_mps=fused_mps,
         wheel_speed_front_radps=abs(truth.wheel_speed_front_radps),
         wheel_speed_rear_radps=abs(truth.wheel_speed_rear_radps),
@@ -230,7 +233,8 @@ def _vcu_inputs(
     )
 
 
-def _step_powertrain(pt: Powertrain, dt_s: float, truth: BogieTruth, re_w: float) -> None:
+def step_powertrain(pt: Powertrain, dt_s: float, truth: BogieTruth, re_w: float) -> None:
+    """Feed the powertrain the drives' actual mechanical powers and the RE reference [W]."""
     pt.step(
         dt_s,
         mechanical_power_front_w=truth.motor_torque_front_nm * truth.wheel_speed_front_radps,
@@ -276,10 +280,10 @@ def run_manoeuvre(
         distance = sign * truth.position_m
         adhesion = manoeuvre.adhesion_factor(distance)
         force = manoeuvre.force_demand_n(truth.time_s, fused)
-        commands = vcu.step(dt_s, _vcu_inputs(manoeuvre, truth, fused, force, powertrain))
+        commands = vcu.step(dt_s, vcu_inputs(manoeuvre.direction, truth, fused, force, powertrain))
         plant.step(dt_s, commands, adhesion_factor=adhesion)
         truth = plant.truth()
-        _step_powertrain(powertrain, dt_s, truth, commands.range_extender_power_w)
+        step_powertrain(powertrain, dt_s, truth, commands.range_extender_power_w)
         motors = truth.motor_torque_front_nm + truth.motor_torque_rear_nm
         status, state = vcu.status, powertrain.state
         rows.append(

@@ -118,3 +118,31 @@ def test_command_for_another_vehicle_is_refused(node: OnboardNode) -> None:
     command = m.Command(vehicle_id="URV2", command_id=1, issued_by="t", body=m.PingCommand())
     ack = node._on_command({"vehicle": "URV1"}, command)
     assert not ack.accepted
+
+
+def test_bogie_fidelity_drives_through_the_vcu(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    from onboard.vcu.vehicle import BogieVehicle
+
+    trackside, onboard = zenoh_pair
+    node = OnboardNode(
+        OnboardSettings(vehicle_id="URV1", fidelity="bogie"), session=onboard, clock=SimClock(),
+        track_map=TrackMap(load_seed_line("bologna-ring")),
+    )  # fmt: skip
+    try:
+        assert isinstance(node.plant, BogieVehicle)
+        assert wait_for(lambda: _ping(trackside))
+        target = 30 / 3.6
+        ack = request(
+            trackside, COMMAND, _command(m.RemoteDrivingTargetCommand(target_speed_mps=target)),
+            vehicle="URV1",
+        )  # fmt: skip
+        assert ack.accepted
+        node.run(60.0)
+        assert node.plant.speed_mps == pytest.approx(target, abs=0.5)
+        truth = node.plant.truth
+        wheel_speed = truth.wheel_speed_rear_radps * truth.wheel_radius_m
+        assert wheel_speed == pytest.approx(truth.speed_mps, abs=0.1)  # rolling, no slip
+    finally:
+        node.close()
