@@ -9,12 +9,20 @@ traction energy of the plain LSPB plan.
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from onboard.adf.closed_loop import ClosedLoopRecord, Stop, run_autonomous_journey
+from deploy.adf_plots import write_handover_plot
+from onboard.adf.closed_loop import (
+    ClosedLoopRecord,
+    HandoverRecord,
+    Stop,
+    run_autonomous_journey,
+    run_handover_sequence,
+)
 from onboard.adf.energy import optimal_leg, plan_traction_energy_j
 from onboard.adf.nmpc import NmpcConfig, NmpcController
 from onboard.adf.odp import plan_legs
@@ -23,7 +31,7 @@ from onboard.plant import URV_PARAMETERS
 from onboard.plant.point_mass import with_model_mismatch
 from trackdb import TrackMap, load_seed_line
 
-__all__ = ["bench_adf", "energy_comparison", "field_test_lap"]
+__all__ = ["bench_adf", "energy_comparison", "field_test_lap", "handover"]
 
 MILANO_BOLOGNA_LEG = (128_000.0, 30_000.0, 700.0, 200 / 3.6)
 """Reggio Emilia towards Bologna: start [m], length [m], scheduled time [s], cap [m/s]."""
@@ -100,9 +108,28 @@ def energy_comparison(console: Console) -> dict[str, dict[str, float]]:
     return results
 
 
-def bench_adf() -> dict[str, dict[str, float]]:
+def handover(console: Console, plots_dir: Path | None) -> HandoverRecord:
+    """The RD → AD → RD sequence: the force at each switch, and the plot if asked for."""
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    record = run_handover_sequence(
+        ring, model=URV_PARAMETERS, truth=with_model_mismatch(URV_PARAMETERS)
+    )
+    span = URV_PARAMETERS.max_traction_force_n + URV_PARAMETERS.max_brake_force_n
+    jumps = ", ".join(f"{100 * jump / span:.2f} %" for jump in record.switch_jumps_n)
+    steps = np.abs(np.diff(record.forces_n))
+    console.print(
+        f"RD → AD → RD: |u(t+) − u(t−)| at the switches {jumps} of the u range (target ≤ 2 %); "
+        f"largest change between control steps {100 * steps.max() / span:.2f} %"
+    )
+    if plots_dir is not None:
+        console.print(f"plot: {write_handover_plot(record, plots_dir)}")
+    return record
+
+
+def bench_adf(*, plots_dir: Path | None = None) -> dict[str, dict[str, float]]:
     console = Console(width=100)
     energy_comparison(console)
+    handover(console, plots_dir)
     results: dict[str, dict[str, float]] = {}
     for solver in ("sqpmethod", "ipopt"):
         console.print(f"field-test lap with {solver}…")

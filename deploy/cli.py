@@ -152,11 +152,15 @@ def bench_plant(
 
 
 @bench_app.command("adf")
-def bench_adf() -> None:
-    """Plan energies (LSPB, ours, optimum) and NMPC solve times (ours against IPOPT)."""
+def bench_adf(
+    plots: Annotated[
+        Path | None, typer.Option("--plots", help="Write the RD → AD → RD figure here.")
+    ] = None,
+) -> None:
+    """Plan energies, the RD → AD → RD hand-over, NMPC solve times (ours against IPOPT)."""
     from deploy.bench_adf import bench_adf as run
 
-    run()
+    run(plots_dir=plots)
 
 
 @bench_app.command("zenoh")

@@ -1,7 +1,8 @@
 """Autonomous driving (AD): the NMPC following the ODP along the line.
 
 Builds the NMPC's per-stage reference from the plan: p_ref and v_ref at each step of the horizon,
-the speed ceiling v_max from the MRSP at the reference position (never above it), and the track
+the speed ceiling v_max from the MRSP at the reference position (never above it; the journey's
+cap is the reference's business, so that the NMPC keeps room to catch up), and the track
 forces (gradient and curve) at the reference position, as the seed's control-oriented model
 takes them. At standstill at a stop, with the reference at rest, the brake holds the vehicle.
 """

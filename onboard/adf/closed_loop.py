@@ -13,11 +13,20 @@ import numpy as np
 import numpy.typing as npt
 
 from onboard.adf.autonomous import AutonomousDriving
-from onboard.adf.nmpc import NmpcController, NmpcStats
-from onboard.adf.odp import OdpPlan
+from onboard.adf.nmpc import NmpcConfig, NmpcController, NmpcStats
+from onboard.adf.odp import OdpPlan, replan_to_stop
+from onboard.adf.rd_controller import RemoteDrivingController
+from onboard.adf.supervisor import ModeRequest, SupervisoryController
 from onboard.plant.point_mass import PointMassModel, PointMassParameters
+from trackdb import TrackMap
 
-__all__ = ["ClosedLoopRecord", "Stop", "run_autonomous_journey"]
+__all__ = [
+    "ClosedLoopRecord",
+    "HandoverRecord",
+    "Stop",
+    "run_autonomous_journey",
+    "run_handover_sequence",
+]
 
 FloatArray = npt.NDArray[np.float64]
 STOPPED_MPS = 0.01
@@ -99,3 +108,101 @@ def _note_arrival(
         near = abs(plant.position_m - stop.distance_m) < STOP_SEARCH_M
         if index not in arrivals and near:
             arrivals[index] = (at_s, plant.position_m - stop.distance_m)
+
+
+@dataclass(frozen=True)
+class HandoverRecord:
+    times_s: FloatArray
+    forces_n: FloatArray
+    """Force the SC applied at each control step [N]."""
+    speeds_mps: FloatArray
+    states: list[str]
+    switch_indices: list[int]
+    """Steps at which the SC changed state."""
+    switch_jumps_n: list[float]
+    """|u(t+) − u(t−)| at each change of state, both taken at the switching instant [N]."""
+
+
+def run_handover_sequence(
+    track_map: TrackMap,
+    *,
+    model: PointMassParameters,
+    truth: PointMassParameters,
+    start_chainage_m: float = 200.0,
+    control_s: float = 0.2,
+    plant_step_s: float = 0.01,
+) -> HandoverRecord:
+    """RD → AD → RD: remote driving at 30 km/h, autonomous towards a stop 1200 m ahead at
+    40 km/h from t = 40 s, remote driving at 20 km/h from t = 100 s, until t = 160 s."""
+    plant = PointMassModel(truth)
+    sc = SupervisoryController()
+    rd = RemoteDrivingController(
+        mass_kg=model.mass_kg, rolling_coefficient=model.davis_a_n / (model.mass_kg * 9.81)
+    )
+    nmpc = NmpcController(model, NmpcConfig(step_s=control_s))
+    autonomous: AutonomousDriving | None = None
+    target_mps = 30 / 3.6
+    sc.request(ModeRequest.REMOTE, 0.0)
+    times: list[float] = []
+    forces: list[float] = []
+    speeds: list[float] = []
+    states: list[str] = []
+    switches: list[int] = []
+    jumps: list[float] = []
+    for k in range(round(160.0 / control_s)):
+        now = k * control_s
+        chainage = track_map.normalise(start_chainage_m + plant.position_m)
+        gradient = track_map.gradient_permille(chainage)
+        requests: list[ModeRequest] = []
+        if k == round(40.0 / control_s):
+            plan = replan_to_stop(
+                track_map, now_s=now, start_chainage_m=start_chainage_m,
+                distance_m=plant.position_m, speed_mps=plant.speed_mps, stop_distance_m=1200.0,
+                cruise_mps=40 / 3.6,
+            )  # fmt: skip
+            autonomous = AutonomousDriving(plan, model, nmpc)
+            requests.append(ModeRequest.AUTONOMOUS)
+        if k == round(100.0 / control_s):
+            target_mps = 20 / 3.6
+            rd.align(forces[-1], speed_mps=plant.speed_mps, gradient_permille=gradient)
+            requests.append(ModeRequest.REMOTE)
+        limits = plant.force_limits_n(plant.speed_mps)
+        u_rd = 0.0
+        if sc.needs_remote:
+            u_rd = rd.step(
+                control_s, target_speed_mps=target_mps, speed_mps=plant.speed_mps,
+                gradient_permille=gradient, force_limits_n=limits,
+            )  # fmt: skip
+        u_ad = 0.0
+        if autonomous is not None and (sc.needs_autonomous or requests):
+            u_ad = autonomous.force_n(
+                now, distance_m=plant.position_m, speed_mps=plant.speed_mps,
+                applied_force_n=plant.applied_force_n,
+            )  # fmt: skip
+        outputs = {"remote_force_n": u_rd, "autonomous_force_n": u_ad}
+        for mode in requests:
+            old = sc.output(**outputs)
+            sc.request(mode, now)
+            jumps.append(abs((sc.output(**outputs) or 0.0) - (old or 0.0)))
+        before = sc.state
+        old = sc.output(**outputs)
+        force = sc.step(control_s, now, **outputs)
+        if sc.state is not before:
+            jumps.append(abs((force or 0.0) - (old or 0.0)))
+        applied = limits[0] if force is None else force
+        if sc.state is not before or (k and states[-1] != before.value):
+            switches.append(k)
+        for _ in range(round(control_s / plant_step_s)):
+            chainage = track_map.normalise(start_chainage_m + plant.position_m)
+            plant.step(
+                plant_step_s, applied, gradient_permille=track_map.gradient_permille(chainage),
+                curve_radius_m=track_map.curve_radius_m(chainage),
+            )  # fmt: skip
+        times.append(now)
+        forces.append(applied)
+        speeds.append(plant.speed_mps)
+        states.append(sc.state.value)
+    return HandoverRecord(
+        times_s=np.array(times), forces_n=np.array(forces), speeds_mps=np.array(speeds),
+        states=states, switch_indices=sorted(set(switches)), switch_jumps_n=jumps,
+    )  # fmt: skip

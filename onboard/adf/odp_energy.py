@@ -315,4 +315,5 @@ def plan_energy_legs(
         except InfeasibleLegError:
             optimised, kept_plain = segment, kept_plain + 1
         legs.append(OdpLeg(leg.start_s, leg.start_distance_m, optimised))
-    return OdpPlan(legs, start_chainage_m=start_chainage_m, track_map=track_map), kept_plain
+    plan = OdpPlan(legs, start_chainage_m=start_chainage_m, track_map=track_map, cap_mps=cap_mps)
+    return plan, kept_plain

@@ -91,6 +91,12 @@ class SupervisoryController:
         """The ODP has been replanned from the current reference."""
         self.replan_requested = False
 
+    def output(self, *, remote_force_n: float, autonomous_force_n: float) -> float | None:
+        """The force the SC applies now for these controller outputs, without advancing."""
+        if self.state is ScState.OFF:
+            return None
+        return (1.0 - self._blend) * remote_force_n + self._blend * autonomous_force_n
+
     def step(
         self, dt_s: float, now_s: float, *, remote_force_n: float, autonomous_force_n: float
     ) -> float | None:
@@ -108,4 +114,4 @@ class SupervisoryController:
             self._blend = max(0.0, self._blend - dt_s / self.handover_s)
             if self._blend <= 0.0:
                 self._enter(ScState.RD, now_s)
-        return (1.0 - self._blend) * remote_force_n + self._blend * autonomous_force_n
+        return self.output(remote_force_n=remote_force_n, autonomous_force_n=autonomous_force_n)
