@@ -33,7 +33,7 @@ from onboard.plant.bogie import BogieModel
 from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS, BogieParameters
 from onboard.plant.interfaces import ActuatorCommands, BogieTruth
 from onboard.plant.powertrain import Powertrain, PowertrainParameters
-from onboard.vcu.parameters import VcuInputs, VcuParameters
+from onboard.vcu.parameters import VcuInputs, VcuParameters, powertrain_feedback
 from onboard.vcu.unit import VehicleControlUnit
 
 __all__ = [
@@ -214,22 +214,15 @@ def vcu_inputs(
     direction: int, truth: BogieTruth, fused_mps: float, force_n: float, pt: Powertrain
 ) -> VcuInputs:
     """What the VCU reads over its buses: the demand, speeds, the BMS and the drives."""
-    bms = pt.bms_status()
-    return VcuInputs(
-        force_demand_n=force_n,
-        direction=direction,
-        fused_speed_mps=fused_mps,
-        wheel_speed_front_radps=abs(truth.wheel_speed_front_radps),
-        wheel_speed_rear_radps=abs(truth.wheel_speed_rear_radps),
-        soc=bms.soc,
-        battery_current_a=bms.current_a,
-        battery_voltage_v=bms.voltage_v,
-        max_discharge_power_w=bms.max_discharge_power_w,
-        max_charge_power_w=bms.max_charge_power_w,
-        continuous_current_a=bms.continuous_current_a,
-        range_extender_power_w=pt.range_extender.power_w,
-        motor_temperature_front_c=pt.thermal_front.temperature_c,
-        motor_temperature_rear_c=pt.thermal_rear.temperature_c,
+    return powertrain_feedback(
+        pt,
+        VcuInputs(
+            force_demand_n=force_n,
+            direction=direction,
+            fused_speed_mps=fused_mps,
+            wheel_speed_front_radps=abs(truth.wheel_speed_front_radps),
+            wheel_speed_rear_radps=abs(truth.wheel_speed_rear_radps),
+        ),
     )
 
 

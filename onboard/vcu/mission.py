@@ -20,7 +20,7 @@ import numpy.typing as npt
 
 from onboard.plant.point_mass import URV_PARAMETERS, PointMassModel, PointMassParameters
 from onboard.plant.powertrain import Powertrain, PowertrainParameters
-from onboard.vcu.parameters import VcuInputs, VcuParameters
+from onboard.vcu.parameters import VcuInputs, VcuParameters, powertrain_feedback
 from onboard.vcu.unit import VehicleControlUnit
 
 __all__ = ["SEED003_MISSION_VEHICLE", "MissionRecord", "run_energy_mission"]
@@ -76,23 +76,16 @@ def run_energy_mission(
     step = 0
     while plant.position_m < distance_m:
         omega = plant.speed_mps / radius
-        bms = powertrain.bms_status()
         commands = vcu.step(
             dt_s,
-            VcuInputs(
-                speed_reference_mps=speed_reference_mps,
-                fused_speed_mps=plant.speed_mps,
-                wheel_speed_front_radps=omega,
-                wheel_speed_rear_radps=omega,
-                soc=bms.soc,
-                battery_current_a=bms.current_a,
-                battery_voltage_v=bms.voltage_v,
-                max_discharge_power_w=bms.max_discharge_power_w,
-                max_charge_power_w=bms.max_charge_power_w,
-                continuous_current_a=bms.continuous_current_a,
-                range_extender_power_w=powertrain.range_extender.power_w,
-                motor_temperature_front_c=powertrain.thermal_front.temperature_c,
-                motor_temperature_rear_c=powertrain.thermal_rear.temperature_c,
+            powertrain_feedback(
+                powertrain,
+                VcuInputs(
+                    speed_reference_mps=speed_reference_mps,
+                    fused_speed_mps=plant.speed_mps,
+                    wheel_speed_front_radps=omega,
+                    wheel_speed_rear_radps=omega,
+                ),
             ),
         )
         motor_torque = commands.motor_torque_front_nm + commands.motor_torque_rear_nm

@@ -6,10 +6,16 @@ seed (marked so) or an assumption written next to it. ``docs/vcu.md`` lists them
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from enum import StrEnum
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from onboard.plant.powertrain import Powertrain
 
 __all__ = [
+    "powertrain_feedback",
     "BrakingPhase",
     "Limitation",
     "VcuInputs",
@@ -146,3 +152,21 @@ class VcuStatus:
     @property
     def slip_detected(self) -> bool:
         return self.slip_front or self.slip_rear
+
+
+def powertrain_feedback(powertrain: Powertrain, demand: VcuInputs) -> VcuInputs:
+    """``demand`` (the ADF's demand and the speeds) completed with what the VCU reads from the
+    BMS, the range extender and the drives' temperatures."""
+    bms = powertrain.bms_status()
+    return dataclasses.replace(
+        demand,
+        soc=bms.soc,
+        battery_current_a=bms.current_a,
+        battery_voltage_v=bms.voltage_v,
+        max_discharge_power_w=bms.max_discharge_power_w,
+        max_charge_power_w=bms.max_charge_power_w,
+        continuous_current_a=bms.continuous_current_a,
+        range_extender_power_w=powertrain.range_extender.power_w,
+        motor_temperature_front_c=powertrain.thermal_front.temperature_c,
+        motor_temperature_rear_c=powertrain.thermal_rear.temperature_c,
+    )
