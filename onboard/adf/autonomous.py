@@ -1,7 +1,7 @@
 """Autonomous driving (AD): the NMPC following the ODP along the line.
 
 Builds the NMPC's per-stage reference from the plan: p_ref and v_ref at each step of the horizon,
-the speed ceiling v_max from the MRSP at the reference position (never above it; the journey's
+the speed ceiling v_max from the MRSP around the reference position (never above it; the journey's
 cap is the reference's business, so that the NMPC keeps room to catch up), and the track
 forces (gradient and curve) at the reference position, as the seed's control-oriented model
 takes them. At standstill at a stop, with the reference at rest, the brake holds the vehicle.
@@ -20,6 +20,7 @@ from onboard.plant.point_mass import CURVE_COEFFICIENT_M, GRAVITY_MPS2, PointMas
 __all__ = ["AutonomousDriving"]
 
 STANDSTILL_MPS = 0.05
+CEILING_WINDOW_M = np.array([-5.0, 0.0, 5.0])
 
 
 class AutonomousDriving:
@@ -37,17 +38,18 @@ class AutonomousDriving:
 
     def reference(self, now_s: float) -> NmpcReference:
         track_map = self.plan.track_map
-        positions, speeds, ceilings, forces = [], [], [], []
+        positions, speeds, forces = [], [], []
         for t in now_s + self._offsets_s:
             distance, speed = self.plan.reference(float(t))
-            chainage = self.plan.chainage_m(distance)
             positions.append(distance)
             speeds.append(speed)
-            ceilings.append(track_map.mrsp_mps(chainage))
-            forces.append(self._track_force_n(chainage))
-        return NmpcReference(
-            np.array(positions), np.array(speeds), np.array(ceilings), np.array(forces)
-        )
+            forces.append(self._track_force_n(self.plan.chainage_m(distance)))
+        # The ceiling of a stage is the lowest MRSP within a few metres of its reference
+        # position: the train may run a little ahead of its reference.
+        origin = self.plan.start_chainage_m
+        around = np.add.outer(np.array(positions), CEILING_WINDOW_M)
+        ceilings = track_map.mrsp_ahead_mps(origin, around).min(axis=1)
+        return NmpcReference(np.array(positions), np.array(speeds), ceilings, np.array(forces))
 
     def _track_force_n(self, chainage_m: float) -> float:
         track_map = self.plan.track_map

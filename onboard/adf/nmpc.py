@@ -4,14 +4,17 @@ Over a horizon of N steps of ``step_s`` it minimises
 
     Σ ω1 (p − p_ref)² + ω2 (v − v_ref)² + ω3 u² + ω4 Δu²
 
-subject to the control-oriented model M(1 + ρ) v̇ = u − (γ + η v + ι v²) − F_track, ṗ = v
-(F_track: gradient and curve forces along the reference, given per stage), v_min ≤ v ≤ v_max(p),
-−F_brake ≤ u ≤ F_max and u·v ≤ P_max (the traction power). The applied force u is carried in the
-state and the decision variables are its increments Δu (multiple shooting, one RK4 step per
-interval). The NLP is built once with casadi and solved by ``sqpmethod`` with the ``qrqp`` QP
-solver, warm-started from the previous solution shifted by one step; IPOPT can be chosen for
-comparison. A failed solve falls back to a safe action, the rest of the previous feasible plan or
-else full service braking, and is counted.
+subject to the control-oriented model M(1 + ρ) v̇ = F − (γ + η v + ι v²) − F_track, ṗ = v,
+τ Ḟ = u − F (F_track: gradient and curve forces along the reference, given per stage; F the force
+the actuators apply, which follows the demand u with the first-order lag τ of the vehicle's
+parameters), v_min ≤ v ≤ v_max(p), −F_brake ≤ u ≤ F_max and u·v ≤ P_max (the traction power).
+The demand u and the applied force F are carried in the state and the decision variables are the
+increments Δu (multiple shooting, one RK4 step per interval). Without the lag in the model a
+braking phase of a few seconds, as at the end of a coasting leg, starts τ late and overshoots the
+stop by about τ·v. The NLP is built once with casadi and solved by ``sqpmethod`` with the
+``qrqp`` QP solver, warm-started from the previous solution shifted by one step (from a rollout
+of the model when cold); IPOPT can be chosen for comparison. A failed solve falls back to a safe
+action, the rest of the previous feasible plan or else full service braking, and is counted.
 """
 
 from __future__ import annotations
@@ -29,7 +32,8 @@ from onboard.plant.point_mass import PointMassParameters
 __all__ = ["NmpcConfig", "NmpcController", "NmpcReference", "NmpcResult", "NmpcStats"]
 
 FloatArray = npt.NDArray[np.float64]
-STATE_SIZE = 3
+STATE_SIZE = 4
+"""p (relative to the measured one) [m], v [m/s], applied force F [kN], demand u [kN]."""
 MAX_SPEED_MPS = 100.0
 KN = 1000.0
 """Forces are in kN inside the NLP and positions relative to the measured one: a well-scaled
@@ -94,11 +98,13 @@ class NmpcController:
         self.model = model
         self.config = config or NmpcConfig()
         self.stats = NmpcStats()
+        self._step = self._dynamics()
         self._solver, self._bounds = self._build()
         n = self.config.horizon_steps
         self._guess: FloatArray | None = None
         self._plan: FloatArray = np.zeros(0)
         self._variables = STATE_SIZE * (n + 1) + n
+        self._demand_n: float | None = None
 
     def _dynamics(self) -> ca.Function:
         m = self.model
@@ -106,12 +112,17 @@ class NmpcController:
         state, increment, track = ca.SX.sym("x", STATE_SIZE), ca.SX.sym("du"), ca.SX.sym("ft")
         mass = m.mass_kg * (1.0 + m.rotating_mass_factor)
 
-        def rate(x: Any) -> Any:
-            v, u = x[1], x[2] * KN
-            resistance = m.davis_a_n + m.davis_b_n_per_mps * v + m.davis_c_n_per_mps2 * v * v
-            return ca.vertcat(v, (u - resistance - track * KN) / mass, 0)
+        lag_s = m.actuator_time_constant_s
 
-        start = ca.vertcat(state[0], state[1], state[2] + increment)
+        def rate(x: Any) -> Any:
+            v, applied = x[1], x[2] * KN
+            resistance = m.davis_a_n + m.davis_b_n_per_mps * v + m.davis_c_n_per_mps2 * v * v
+            following = (x[3] - x[2]) / lag_s if lag_s > 0 else 0
+            return ca.vertcat(v, (applied - resistance - track * KN) / mass, following, 0)
+
+        demand = state[3] + increment
+        applied = state[2] if lag_s > 0 else demand
+        start = ca.vertcat(state[0], state[1], applied, demand)
         k1 = rate(start)
         k2 = rate(start + dt / 2 * k1)
         k3 = rate(start + dt / 2 * k2)
@@ -121,14 +132,15 @@ class NmpcController:
 
     def _build(self) -> tuple[ca.Function, dict[str, list[float]]]:
         c, m, n = self.config, self.model, self.config.horizon_steps
-        step = self._dynamics()
+        step = self._step
         states = ca.SX.sym("X", STATE_SIZE, n + 1)
         increments = ca.SX.sym("dU", 1, n)
         parameters = ca.SX.sym("P", STATE_SIZE + 4 * n)
-        p_ref, v_ref = parameters[3 : 3 + n], parameters[3 + n : 3 + 2 * n]
-        v_max, track = parameters[3 + 2 * n : 3 + 3 * n], parameters[3 + 3 * n :]
+        s = STATE_SIZE
+        p_ref, v_ref = parameters[s : s + n], parameters[s + n : s + 2 * n]
+        v_max, track = parameters[s + 2 * n : s + 3 * n], parameters[s + 3 * n :]
         cost: Any = 0
-        constraints = [states[:, 0] - parameters[0:3]]
+        constraints = [states[:, 0] - parameters[0:s]]
         lower = [0.0] * STATE_SIZE
         upper = [0.0] * STATE_SIZE
         for k in range(n):
@@ -136,14 +148,14 @@ class NmpcController:
             constraints += [
                 following - step(states[:, k], increments[k], track[k]),
                 following[1] - v_max[k],
-                following[2] * following[1],
+                following[3] * following[1],
             ]
             lower += [0.0] * STATE_SIZE + [-ca.inf, -ca.inf]
             upper += [0.0] * STATE_SIZE + [0.0, m.max_traction_power_w / KN]
             cost += (
                 c.weight_position * (following[0] - p_ref[k]) ** 2
                 + c.weight_speed * (following[1] - v_ref[k]) ** 2
-                + c.weight_force * KN**2 * following[2] ** 2
+                + c.weight_force * KN**2 * following[3] ** 2
                 + c.weight_force_rate * KN**2 * increments[k] ** 2
             )
         variables = ca.vertcat(ca.reshape(states, -1, 1), ca.reshape(increments, -1, 1))
@@ -153,8 +165,9 @@ class NmpcController:
             "g": ca.vertcat(*constraints),
             "p": parameters,
         }
-        state_low = [-ca.inf, c.min_predicted_speed_mps, -m.max_brake_force_n / KN]
-        state_high = [ca.inf, MAX_SPEED_MPS, m.max_traction_force_n / KN]
+        forces = (-m.max_brake_force_n / KN, m.max_traction_force_n / KN)
+        state_low = [-ca.inf, c.min_predicted_speed_mps, forces[0], forces[0]]
+        state_high = [ca.inf, MAX_SPEED_MPS, forces[1], forces[1]]
         step_kn = c.max_force_step_n / KN
         bounds = {
             "lbx": state_low * (n + 1) + [-step_kn] * n,
@@ -168,21 +181,26 @@ class NmpcController:
         """Forget the warm start and the previous plan (after a mode change)."""
         self._guess = None
         self._plan = np.zeros(0)
+        self._demand_n = None
 
     def solve(
         self, *, position_m: float, speed_mps: float, applied_force_n: float,
         reference: NmpcReference,
     ) -> NmpcResult:  # fmt: skip
-        """One receding-horizon step from the measured state."""
+        """One receding-horizon step from the measured state: position, speed and the force the
+        actuators apply now; the demand starts from the last one this controller sent (the
+        applied force after a reset)."""
         n = self.config.horizon_steps
-        state = np.array([0.0, max(speed_mps, 0.0), applied_force_n / KN])
+        demand_n = applied_force_n if self._demand_n is None else self._demand_n
+        state = np.array([0.0, max(speed_mps, 0.0), applied_force_n / KN, demand_n / KN])
         parameters = np.concatenate(
             [state, reference.position_m - position_m, reference.speed_mps,
              reference.max_speed_mps, reference.track_force_n / KN]
         )  # fmt: skip
         started = time.perf_counter()
         try:
-            solution = self._solver(x0=self._initial_guess(state), p=parameters, **self._bounds)
+            guess = self._initial_guess(state, reference.track_force_n / KN)
+            solution = self._solver(x0=guess, p=parameters, **self._bounds)
             success = bool(self._solver.stats()["success"])
         except RuntimeError:
             solution, success = None, False
@@ -194,18 +212,28 @@ class NmpcController:
         values = np.asarray(solution["x"], dtype=float).ravel()
         states = values[: STATE_SIZE * (n + 1)].reshape(n + 1, STATE_SIZE)
         self._guess = values
-        forces_n = states[1:, 2] * KN
+        forces_n = states[1:, 3] * KN
         self._plan = forces_n[1:]
+        self._demand_n = float(forces_n[0])
         return NmpcResult(
             force_n=float(forces_n[0]), success=True, fallback=False, solve_time_s=elapsed,
             predicted_speed_mps=states[1:, 1], predicted_force_n=forces_n,
         )  # fmt: skip
 
-    def _initial_guess(self, state: FloatArray) -> FloatArray:
+    def _initial_guess(self, state: FloatArray, track_kn: FloatArray) -> FloatArray:
         n = self.config.horizon_steps
         if self._guess is None:
+            # Cold start: the model rolled out with the demand held, so that the SQP starts
+            # from a trajectory that meets the dynamics.
             guess = np.zeros(self._variables)
-            guess[: STATE_SIZE * (n + 1)] = np.tile(state, n + 1)
+            low, high = self.config.min_predicted_speed_mps, MAX_SPEED_MPS
+            x = state
+            rows = [x]
+            for k in range(n):
+                x = np.asarray(self._step(x, 0.0, float(track_kn[k])), dtype=float).ravel()
+                x[1] = min(max(x[1], low), high)
+                rows.append(x)
+            guess[: STATE_SIZE * (n + 1)] = np.concatenate(rows)
             return guess
         states = self._guess[: STATE_SIZE * (n + 1)].reshape(n + 1, STATE_SIZE).copy()
         increments = self._guess[STATE_SIZE * (n + 1) :]
@@ -223,6 +251,7 @@ class NmpcController:
             self._plan = self._plan[1:]
         else:
             force = -self.model.max_brake_force_n
+        self._demand_n = force
         return NmpcResult(
             force_n=force, success=False, fallback=True, solve_time_s=elapsed,
             predicted_speed_mps=np.zeros(0), predicted_force_n=np.zeros(0),

@@ -1,27 +1,46 @@
-"""Energy-minimised legs for the ODP: LSPB with coasting, its parameters optimised with casadi.
+"""Energy-minimised legs for the ODP: hold, coast and brake on the line's own speed sections.
 
-A leg runs in four phases, the regimes of the energy-optimal strategy on level track (DOMAIN.md
-§5: accelerate, hold, coast, brake): accelerate at a₁ to the cruise speed v_c, cruise, coast with
-no traction from s_c (resistance and gradient slow the train), and brake at a_b from s_b to stop
-at the leg's end. The parameters (v_c, a₁, s_c, s_b, a_b) minimise the traction energy at the
-wheel subject to arriving at the scheduled time, v_c under the leg's speed limit, the vehicle's
-acceleration limit, and the phases in order. The coasting phase is integrated over distance with
-the track forces of the line (a casadi interpolant), both in the NLP and, finely, when the
-reference is built. The plain LSPB is the start point of the search, so the optimum can only
-spend less.
+The energy-optimal control of a train over a fixed time (DOMAIN.md §5) runs in regimes:
+accelerate as hard as allowed, hold a speed, coast, brake. Where the speed limit changes inside a
+leg, the held speed is capped section by section, so a leg is a chain of LSPB-like segments, one
+per speed section: this planner builds that chain from two parameters and optimises them.
+
+Given a holding speed V and the point c where the final coast starts, the profile v(s) over the
+leg's distance s is built on a grid of step h:
+
+- the target of section k is w_k = min(V, limit_k), limit_k being the MRSP (with TSRs) and the
+  journey cap;
+- braking envelope b: backwards from the stop and from every drop of the target, at the planned
+  service deceleration a_b;
+- coasting curves k: backwards from every drop, the speeds from which coasting meets the lower
+  target at the drop, integrated over the line's gradients and curves;
+- forwards: below k, accelerate at min(a_max, (F_avail(v) − R(v) − F_track) / M(1 + ρ)) up to
+  the target and hold it (traction, or braking on a steep descent, which costs no traction), or
+  up to k; on or above k, coast (no traction: v² drops by 2 (R + F_track) / M(1 + ρ) per metre),
+  so the train slows for a lower limit without braking where the distance allows; never above
+  b. From c on, coast the same way to the final braking curve.
+
+Time T(V, c) = Σ 2h / (v_i + v_{i+1}); traction energy E = Σ max(M(1+ρ) Δv²/2h + R + F_track, 0) h.
+For each V the coast point c(V) that arrives exactly on time is the root of T(V, c) − T (T falls
+as c grows); E(V, c(V)) is then minimised over V between the slowest holding speed that still
+arrives on time without coasting and the highest limit on the leg, by a bounded scalar search.
+Both searches are one-dimensional, continuous (c acts through a fractional step) and always find
+a profile when the leg is feasible, which the earlier IPOPT formulation of the same structure did
+not on descents, where coasting gains speed and must be held by the brake (docs/decisions.md).
+
+The same builder, with V and c given, replans from a moving train (``replan_from_state``): a
+shortened movement authority, a new TSR, an obstacle, or the end of an ETCS intervention.
 """
 
 from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
-import casadi as ca
 import numpy as np
 import numpy.typing as npt
+from scipy.optimize import brentq, minimize_scalar
 
 from onboard.adf.energy import track_force_n
 from onboard.adf.odp import (
@@ -30,87 +49,296 @@ from onboard.adf.odp import (
     LegProfile,
     OdpLeg,
     OdpPlan,
-    leg_speed_limit_mps,
-    lspb_segment,
     plan_legs,
 )
-from onboard.plant.point_mass import PointMassParameters
+from onboard.plant.point_mass import MIN_POWER_SPEED_MPS, PointMassParameters
 from trackdb import TrackMap
 
-__all__ = ["CoastingLeg", "optimise_leg", "plan_energy_legs"]
+__all__ = [
+    "MAX_BRAKING_MPS2",
+    "LegTrack",
+    "ProfileLeg",
+    "build_profile",
+    "optimise_leg",
+    "plan_energy_legs",
+    "replan_from_state",
+]
 
 FloatArray = npt.NDArray[np.float64]
-SUBSTEPS = 40
 MAX_BRAKING_MPS2 = 0.7
 """Planned braking [m/s²]: service braking with a margin to the URV's 0.93 m/s² full brake,
 so the controller can correct a mismatch at the end of a stop."""
-FINE_STEP_M = 1.0
-SMOOTHING_N = 50.0
-MIN_COAST_SPEED_MPS = 0.5
-MIN_STEP_M = 0.01
-FEASIBILITY_TOLERANCE = 1e-3
-ARRIVAL_ITERATIONS = 8
-ARRIVAL_TOLERANCE_S = 0.01
+MIN_STEP_M = 1.0
+MAX_STEPS = 1500
+CRAWL_MPS = 0.5
+"""The coast never lets the train fall below this speed: traction holds it."""
+SPEED_TOLERANCE_MPS = 1e-3
+TIME_TOLERANCE_S = 1e-4
+MRSP_MARGIN_MPS = 0.2 / 3.6
+"""The plan holds this far under the MRSP (not under the journey's cap), so that tracking
+errors of the controller under a model mismatch stay under the limit."""
 
 
 @dataclass(frozen=True)
-class CoastingLeg:
-    """A leg's reference: accelerate, cruise, coast, brake; ``at(t)`` as for an LSPB segment."""
+class ProfileLeg:
+    """A leg's reference as a speed profile over distance; ``at(t)`` as for an LSPB segment.
 
-    distance_m: float
-    acceleration_mps2: float
-    cruise_speed_mps: float
-    coast_start_m: float
-    brake_start_m: float
-    braking_mps2: float
-    coast_times_s: FloatArray
-    coast_distances_m: FloatArray
-    coast_speeds_mps: FloatArray
+    Between grid points the acceleration is constant, so distance and speed at any time are
+    exact for the profile and consistent with each other.
+    """
 
-    @property
-    def _accelerating_s(self) -> float:
-        return self.cruise_speed_mps / self.acceleration_mps2
+    distances_m: FloatArray
+    speeds_mps: FloatArray
+    times_s: FloatArray
+    holding_speed_mps: float
+    braking_onset_mps: float
+    traction_energy_j: float
 
     @property
-    def _cruise_end_s(self) -> float:
-        accelerating_m = self.cruise_speed_mps**2 / (2.0 * self.acceleration_mps2)
-        return self._accelerating_s + (self.coast_start_m - accelerating_m) / self.cruise_speed_mps
-
-    @property
-    def _brake_start_s(self) -> float:
-        return self._cruise_end_s + float(self.coast_times_s[-1])
+    def distance_m(self) -> float:
+        return float(self.distances_m[-1])
 
     @property
     def duration_s(self) -> float:
-        return self._brake_start_s + float(self.coast_speeds_mps[-1]) / self.braking_mps2
+        return float(self.times_s[-1])
+
+    @property
+    def max_speed_mps(self) -> float:
+        return float(self.speeds_mps.max())
 
     def at(self, t_s: float) -> tuple[float, float]:
         """(distance [m], speed [m/s]) at ``t_s`` from the leg's start, clamped to the leg."""
-        t = min(max(t_s, 0.0), self.duration_s)
-        if t < self._accelerating_s:
-            return 0.5 * self.acceleration_mps2 * t * t, self.acceleration_mps2 * t
-        if t < self._cruise_end_s:
-            accelerating_m = self.cruise_speed_mps**2 / (2.0 * self.acceleration_mps2)
-            return accelerating_m + self.cruise_speed_mps * (t - self._accelerating_s), (
-                self.cruise_speed_mps
-            )
-        if t < self._brake_start_s:
-            tau = t - self._cruise_end_s
-            index = min(bisect.bisect_right(self.coast_times_s, tau), len(self.coast_times_s) - 1)
-            index = max(index, 1)
-            t0, t1 = self.coast_times_s[index - 1], self.coast_times_s[index]
-            share = 0.0 if t1 == t0 else (tau - t0) / (t1 - t0)
-            s = self.coast_distances_m[index - 1] + share * (
-                self.coast_distances_m[index] - self.coast_distances_m[index - 1]
-            )
-            v = self.coast_speeds_mps[index - 1] + share * (
-                self.coast_speeds_mps[index] - self.coast_speeds_mps[index - 1]
-            )
-            return float(s), float(v)
-        remaining = self.duration_s - t
-        return self.distance_m - 0.5 * self.braking_mps2 * remaining**2, (
-            self.braking_mps2 * remaining
+        times = self.times_s
+        t = min(max(t_s, 0.0), float(times[-1]))
+        index = min(max(bisect.bisect_right(times, t) - 1, 0), len(times) - 2)
+        t0, t1 = float(times[index]), float(times[index + 1])
+        v0, v1 = float(self.speeds_mps[index]), float(self.speeds_mps[index + 1])
+        tau = t - t0
+        acceleration = (v1 - v0) / (t1 - t0) if t1 > t0 else 0.0
+        s = float(self.distances_m[index]) + v0 * tau + 0.5 * acceleration * tau * tau
+        return min(s, float(self.distances_m[index + 1])), v0 + acceleration * tau
+
+
+class LegTrack:
+    """What the builder needs of the line over one leg, sampled once on the grid.
+
+    ``ceilings`` are the MRSP less a small margin (and the cap) at each grid point, the lowest
+    one touching the point's neighbouring steps, so that a profile under them is under the
+    MRSP everywhere.
+    """
+
+    def __init__(
+        self,
+        track_map: TrackMap,
+        model: PointMassParameters,
+        *,
+        start_chainage_m: float,
+        distance_m: float,
+        cap_mps: float | None = None,
+        max_acceleration_mps2: float = MAX_ACCELERATION_MPS2,
+        braking_mps2: float = MAX_BRAKING_MPS2,
+    ) -> None:
+        if not (math.isfinite(distance_m) and distance_m > 0.0):
+            raise InfeasibleLegError(f"leg of {distance_m} m")
+        steps = max(2, math.ceil(distance_m / MIN_STEP_M))
+        steps = min(steps, MAX_STEPS)
+        self.model = model
+        self.step_m = distance_m / steps
+        self.distances_m = np.linspace(0.0, distance_m, steps + 1)
+        self.ceilings_mps = np.full(steps + 1, math.inf if cap_mps is None else cap_mps)
+        for section in track_map.mrsp_window(start_chainage_m, distance_m):
+            speed_mps = section.speed_mps - MRSP_MARGIN_MPS
+            first = max(0, math.floor(section.from_distance_m / self.step_m) - 1)
+            last = min(steps, math.ceil(section.to_distance_m / self.step_m) + 1)
+            view = self.ceilings_mps[first : last + 1]
+            np.minimum(view, speed_mps, out=view)
+        if not np.all(np.isfinite(self.ceilings_mps)):
+            raise InfeasibleLegError("the leg runs beyond the end of the line")
+        middles = start_chainage_m + (self.distances_m[:-1] + self.distances_m[1:]) / 2.0
+        self.track_forces_n = np.array([track_force_n(track_map, model, c) for c in middles])
+        self.effective_mass_kg = model.mass_kg * (1.0 + model.rotating_mass_factor)
+        self.max_acceleration_mps2 = max_acceleration_mps2
+        self.braking_mps2 = braking_mps2
+
+    @property
+    def steps(self) -> int:
+        return len(self.distances_m) - 1
+
+    @property
+    def distance_m(self) -> float:
+        return float(self.distances_m[-1])
+
+    def resistance_n(self, speed_mps: float) -> float:
+        m = self.model
+        return m.davis_a_n + m.davis_b_n_per_mps * speed_mps + m.davis_c_n_per_mps2 * speed_mps**2
+
+    def available_traction_n(self, speed_mps: float) -> float:
+        m = self.model
+        return min(
+            m.max_traction_force_n, m.max_traction_power_w / max(speed_mps, MIN_POWER_SPEED_MPS)
         )
+
+    def coast_delta_v2(self, index: int, speed_mps: float) -> float:
+        """Change of v² [m²/s²] over step ``index`` with no traction and no brake."""
+        force = self.resistance_n(speed_mps) + float(self.track_forces_n[index])
+        return -2.0 * force / self.effective_mass_kg * self.step_m
+
+
+class _Profiles:
+    """Profiles of one leg for (V, U), with the targets and the braking envelope cached per V."""
+
+    def __init__(self, track: LegTrack, initial_mps: float) -> None:
+        self.track = track
+        self.initial_mps = initial_mps
+        self._envelopes: dict[float, tuple[FloatArray, FloatArray]] = {}
+        # A train faster than the holding speed coasts down to it rather than braking: the
+        # target follows its coasting curve from the initial speed (never rising).
+        coast_down = np.zeros(track.steps + 1)
+        v = coast_down[0] = initial_mps
+        for i in range(track.steps):
+            if v <= CRAWL_MPS:
+                break
+            v = math.sqrt(max(min(v * v, v * v + track.coast_delta_v2(i, v)), 0.0))
+            coast_down[i + 1] = v
+        self._coast_down = coast_down
+
+    def envelope(self, holding_mps: float) -> tuple[FloatArray, FloatArray]:
+        """Targets w and the braking envelope b for a holding speed."""
+        if holding_mps in self._envelopes:
+            return self._envelopes[holding_mps]
+        track = self.track
+        n = track.steps
+        targets = np.minimum(track.ceilings_mps, np.maximum(holding_mps, self._coast_down))
+        envelope = targets.copy()
+        envelope[n] = 0.0
+        two_b_h = 2.0 * track.braking_mps2 * track.step_m
+        for i in range(n - 1, -1, -1):
+            envelope[i] = min(envelope[i], math.sqrt(envelope[i + 1] ** 2 + two_b_h))
+        if self.initial_mps > envelope[0] + SPEED_TOLERANCE_MPS:
+            raise InfeasibleLegError(
+                f"{self.initial_mps:.2f} m/s is above what braking at {track.braking_mps2} "
+                f"m/s² allows here ({envelope[0]:.2f} m/s)"
+            )
+        self._envelopes[holding_mps] = targets, envelope
+        return targets, envelope
+
+    def coasting_curves(self, targets: FloatArray, onset_mps: float) -> FloatArray:
+        """Before each drop of the target and before the stop: the braking curve down from the
+        onset speed U (or from the lower target, when higher), and before it the speeds from
+        which coasting meets that curve; infinite elsewhere."""
+        track = self.track
+        n, h, braking = track.steps, track.step_m, track.braking_mps2
+        curves = np.full(n + 1, math.inf)
+        # Drops of the limits only: the coast-down from a high initial speed is a curve, not
+        # a drop to brake for.
+        limits = np.minimum(track.ceilings_mps, targets.max())
+        ends = np.flatnonzero(limits[1:] < limits[:-1] - SPEED_TOLERANCE_MPS) + 1
+        for end in (*ends[ends < n], n):
+            low = 0.0 if end == n else float(targets[end])
+            onset = max(onset_mps, low)
+            onset_m = float(track.distances_m[end]) - (onset**2 - low**2) / (2.0 * braking)
+            first = min(max(math.floor(onset_m / h), -1), end - 1)
+            # The braking part, from the onset point to the end.
+            span = np.arange(first + 1, end + 1)
+            to_end_m = track.distances_m[end] - track.distances_m[span]
+            curves[span] = np.minimum(curves[span], np.sqrt(low**2 + 2.0 * braking * to_end_m))
+            if first < 0:
+                continue
+            # The coasting part, backwards from the onset point.
+            force = track.resistance_n(onset) + float(track.track_forces_n[first])
+            v2 = onset**2 + 2.0 * force / track.effective_mass_kg * (onset_m - first * h)
+            for i in range(first, -1, -1):
+                # On a descent coasting gains speed, so backwards the curve falls; it is held
+                # at a crawl, as the forward run is, so that a lower U always coasts longer.
+                v2 = max(v2, CRAWL_MPS**2)
+                if v2 >= float(targets[i]) ** 2:
+                    break
+                v = math.sqrt(v2)
+                curves[i] = min(float(curves[i]), v)
+                if i > 0:
+                    v2 -= track.coast_delta_v2(i - 1, v)
+        return curves
+
+    def speeds(self, holding_mps: float, onset_mps: float) -> FloatArray:
+        """The profile: drive below the coasting curves, coast on or above them, never above
+        the braking envelope."""
+        track = self.track
+        n = track.steps
+        targets, envelope = self.envelope(holding_mps)
+        coasting = self.coasting_curves(targets, onset_mps)
+        speeds = np.empty(n + 1)
+        speeds[0] = min(self.initial_mps, float(envelope[0]))
+        for i in range(n):
+            v = float(speeds[i])
+            if v >= float(coasting[i]) - SPEED_TOLERANCE_MPS:
+                v2 = v * v + track.coast_delta_v2(i, v)
+            else:
+                push = track.available_traction_n(v) - track.resistance_n(v)
+                acceleration = min(
+                    track.max_acceleration_mps2,
+                    (push - float(track.track_forces_n[i])) / track.effective_mass_kg,
+                )
+                v2 = min(v * v + 2.0 * acceleration * track.step_m, float(coasting[i + 1]) ** 2)
+            v2 = max(v2, CRAWL_MPS**2 if i < n - 1 else 0.0)
+            speeds[i + 1] = math.sqrt(min(v2, float(envelope[i + 1]) ** 2))
+        return speeds
+
+    def time_s(self, holding_mps: float, onset_mps: float) -> float:
+        return float(_cumulative(self.track, self.speeds(holding_mps, onset_mps))[0][-1])
+
+    def onset_mps(self, holding_mps: float, duration_s: float) -> float:
+        """The braking onset speed U that arrives on time at this holding speed: U = V is the
+        fastest (no coasting), a lower U coasts longer."""
+        if self.time_s(holding_mps, holding_mps) >= duration_s:
+            return holding_mps
+        if self.time_s(holding_mps, 0.0) <= duration_s:
+            return 0.0
+        return float(
+            brentq(
+                lambda u: self.time_s(holding_mps, u) - duration_s,
+                0.0,
+                holding_mps,
+                xtol=1e-5,
+                rtol=1e-10,
+            )  # fmt: skip
+        )
+
+    def energy_j(self, holding_mps: float, duration_s: float) -> float:
+        speeds = self.speeds(holding_mps, self.onset_mps(holding_mps, duration_s))
+        return float(_cumulative(self.track, speeds)[1][-1])
+
+
+def _cumulative(track: LegTrack, speeds: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Cumulative time [s] and traction energy [J] at each grid point of a profile."""
+    h = track.step_m
+    v0, v1 = speeds[:-1], speeds[1:]
+    average = np.maximum((v0 + v1) / 2.0, 1e-9)
+    dt = h / average
+    m = track.model
+    resistance = m.davis_a_n + m.davis_b_n_per_mps * average + m.davis_c_n_per_mps2 * average**2
+    force = track.effective_mass_kg * (v1**2 - v0**2) / (2.0 * h) + resistance
+    force += track.track_forces_n
+    energy = np.maximum(force, 0.0) * h
+    return np.concatenate(([0.0], np.cumsum(dt))), np.concatenate(([0.0], np.cumsum(energy)))
+
+
+def build_profile(
+    track: LegTrack,
+    *,
+    holding_speed_mps: float,
+    braking_onset_mps: float | None = None,
+    initial_speed_mps: float = 0.0,
+) -> ProfileLeg:
+    """The profile for a holding speed V [m/s] and a braking onset speed U [m/s] (V, no
+    coasting, when omitted), from ``initial_speed_mps`` to a stop at the leg's end."""
+    onset = holding_speed_mps if braking_onset_mps is None else braking_onset_mps
+    speeds = _Profiles(track, initial_speed_mps).speeds(holding_speed_mps, onset)
+    times, energies = _cumulative(track, speeds)
+    return ProfileLeg(
+        distances_m=track.distances_m, speeds_mps=speeds, times_s=times,
+        holding_speed_mps=holding_speed_mps, braking_onset_mps=onset,
+        traction_energy_j=float(energies[-1]),
+    )  # fmt: skip
 
 
 def optimise_leg(
@@ -120,166 +348,45 @@ def optimise_leg(
     start_chainage_m: float,
     distance_m: float,
     duration_s: float,
-    speed_limit_mps: float,
+    cap_mps: float | None = None,
+    initial_speed_mps: float = 0.0,
     max_acceleration_mps2: float = MAX_ACCELERATION_MPS2,
-    max_braking_mps2: float = MAX_BRAKING_MPS2,
-) -> CoastingLeg:
-    """The least-traction-energy accelerate/cruise/coast/brake leg arriving at ``duration_s``."""
-    lspb = lspb_segment(distance_m, duration_s, speed_limit_mps=speed_limit_mps)
-    grid = np.linspace(0.0, distance_m, max(2, math.ceil(distance_m / 5.0)) + 1)
-    forces = [track_force_n(track_map, model, start_chainage_m + s) for s in grid]
-    track = ca.interpolant("track", "linear", [grid], forces)
-    variables, constraints, lower, upper, energy = _leg_problem(
-        model, track, distance_m, duration_s, speed_limit_mps, max_acceleration_mps2
-    )
-    solver = ca.nlpsol(
-        "leg", "ipopt", {"x": variables, "f": energy, "g": constraints},
-        {"print_time": False, "ipopt.print_level": 0, "ipopt.sb": "yes", "ipopt.max_iter": 300},
+    braking_mps2: float = MAX_BRAKING_MPS2,
+) -> ProfileLeg:
+    """The least-traction-energy hold/coast/brake leg arriving after ``duration_s`` [s].
+
+    Raises
+    ------
+    InfeasibleLegError
+        When even holding the highest limits the train cannot arrive in time.
+    """
+    track = LegTrack(
+        track_map, model, start_chainage_m=start_chainage_m, distance_m=distance_m,
+        cap_mps=cap_mps, max_acceleration_mps2=max_acceleration_mps2, braking_mps2=braking_mps2,
     )  # fmt: skip
-    a, v = lspb.acceleration_mps2, lspb.cruise_speed_mps
-    braking = min(a, max_braking_mps2)
-    braking_m = v * v / (2 * braking)
-    guess = [v, a, distance_m - braking_m - 1.0, distance_m - braking_m, braking]
-    bounds = _variable_bounds(distance_m, speed_limit_mps, max_acceleration_mps2, max_braking_mps2)
-    result = solver(x0=guess, lbg=lower, ubg=upper, **bounds)
-    if not solver.stats()["success"] and _violation(result, lower, upper) > FEASIBILITY_TOLERANCE:
-        # Near-flat optima (downhill coasting) may stop IPOPT on its iteration limit at a
-        # feasible point; only an infeasible end is a failure.
-        raise InfeasibleLegError(f"no coasting profile: {solver.stats()['return_status']}")
-    v_c, a_1, s_c, _, a_b = (float(x) for x in np.asarray(result["x"]).ravel())
-    return _arrive_on_time(
-        lambda coast_m: _build_leg(
-            track_map, model, start_chainage_m, distance_m, v_c, a_1, coast_m, a_b
-        ),
-        s_c, duration_s,
+    profiles = _Profiles(track, initial_speed_mps)
+    fastest = float(track.ceilings_mps.max())
+    fastest_s = profiles.time_s(fastest, fastest)
+    if fastest_s > duration_s + TIME_TOLERANCE_S:
+        raise InfeasibleLegError(
+            f"{distance_m:.0f} m takes at least {fastest_s:.1f} s under the limits, more than "
+            f"the {duration_s:.1f} s scheduled"
+        )
+    # The slowest holding speed that arrives on time without coasting.
+    slowest = CRAWL_MPS
+    if profiles.time_s(CRAWL_MPS, CRAWL_MPS) > duration_s:
+        slowest = float(
+            brentq(lambda v: profiles.time_s(v, v) - duration_s, CRAWL_MPS, fastest, xtol=1e-6)
+        )
+    result = minimize_scalar(
+        lambda v: profiles.energy_j(v, duration_s), bounds=(slowest, fastest), method="bounded",
+        options={"xatol": 1e-3},
     )  # fmt: skip
-
-
-def _arrive_on_time(
-    build: Callable[[float], CoastingLeg], coast_start_m: float, duration_s: float
-) -> CoastingLeg:
-    """Move the coasting point (secant steps) so that the finely integrated leg arrives at the
-    scheduled time: the NLP's coarse coast integration leaves a small error."""
-    leg = build(coast_start_m)
-    previous_m, previous_error = coast_start_m, leg.duration_s - duration_s
-    step_m = 1.0 if previous_error < 0 else -1.0
-    current_m = coast_start_m + step_m
-    for _ in range(ARRIVAL_ITERATIONS):
-        leg = build(current_m)
-        error = leg.duration_s - duration_s
-        if abs(error) < ARRIVAL_TOLERANCE_S or error == previous_error:
-            break
-        current_m, previous_m, previous_error = (
-            current_m - error * (current_m - previous_m) / (error - previous_error),
-            current_m,
-            error,
-        )
-    return leg
-
-
-def _violation(result: dict[str, Any], lower: list[float], upper: list[float]) -> float:
-    g = np.asarray(result["g"], dtype=float).ravel()
-    return float(np.max(np.maximum(np.array(lower) - g, g - np.array(upper)), initial=0.0))
-
-
-def _variable_bounds(
-    distance_m: float, limit_mps: float, max_acceleration_mps2: float, max_braking_mps2: float
-) -> dict[str, list[float]]:
-    return {
-        "lbx": [0.5, 0.05, 0.0, 0.0, 0.05],
-        "ubx": [limit_mps, max_acceleration_mps2, distance_m, distance_m, max_braking_mps2],
-    }
-
-
-def _smooth_positive(x: Any) -> Any:
-    return 0.5 * (x + ca.sqrt(x * x + SMOOTHING_N**2))
-
-
-def _leg_problem(
-    model: PointMassParameters,
-    track: ca.Function,
-    distance_m: float,
-    duration_s: float,
-    limit_mps: float,
-    max_acceleration_mps2: float,
-) -> tuple[Any, Any, list[float], list[float], Any]:
-    mass = model.mass_kg * (1.0 + model.rotating_mass_factor)
-
-    def resistance(v: Any) -> Any:
-        return model.davis_a_n + model.davis_b_n_per_mps * v + model.davis_c_n_per_mps2 * v * v
-
-    x = ca.SX.sym("x", 5)
-    v_c, a_1, s_c, s_b, a_b = x[0], x[1], x[2], x[3], x[4]
-    s_1 = v_c * v_c / (2 * a_1)
-    energy: Any = 0
-    h_1 = s_1 / SUBSTEPS
-    for k in range(SUBSTEPS):
-        s = (k + 0.5) * h_1
-        v = ca.sqrt(2 * a_1 * s)
-        energy += _smooth_positive(mass * a_1 + resistance(v) + track(s)) * h_1
-    h_2 = (s_c - s_1) / SUBSTEPS
-    for k in range(SUBSTEPS):
-        energy += _smooth_positive(resistance(v_c) + track(s_1 + (k + 0.5) * h_2)) * h_2
-    h_3 = (s_b - s_c) / SUBSTEPS
-    v2 = v_c * v_c
-    coast_time: Any = 0
-    speeds = []
-    for k in range(SUBSTEPS):
-        v_now = ca.sqrt(ca.fmax(v2, 1e-4))
-        v2_next = v2 - 2 * (resistance(v_now) + track(s_c + k * h_3)) / mass * h_3
-        coast_time += 2 * h_3 / (v_now + ca.sqrt(ca.fmax(v2_next, 1e-4)))
-        v2 = v2_next
-        speeds.append(v2)
-    v_b = ca.sqrt(ca.fmax(v2, 1e-4))
-    total_time = v_c / a_1 + (s_c - s_1) / v_c + coast_time + v_b / a_b
-    constraints = [
-        total_time - duration_s,
-        v2 - 2 * a_b * (distance_m - s_b),
-        s_c - s_1,
-        s_b - s_c,
-        *speeds,
-    ]
-    lower = [0.0, 0.0, 0.0, 0.0] + [MIN_COAST_SPEED_MPS**2] * SUBSTEPS
-    upper = [0.0, 0.0, distance_m, distance_m] + [limit_mps**2] * SUBSTEPS
-    del max_acceleration_mps2  # bounded through the variables
-    return x, ca.vertcat(*constraints), lower, upper, energy
-
-
-def _build_leg(
-    track_map: TrackMap,
-    model: PointMassParameters,
-    start_chainage_m: float,
-    distance_m: float,
-    cruise_mps: float,
-    acceleration_mps2: float,
-    coast_start_m: float,
-    braking_mps2: float,
-) -> CoastingLeg:
-    """Integrate the coast finely on the real line until it meets the braking curve that stops
-    the train at the leg's end."""
-    mass = model.mass_kg * (1.0 + model.rotating_mass_factor)
-    accelerating_m = cruise_mps**2 / (2.0 * acceleration_mps2)
-    coast_start_m = min(max(coast_start_m, accelerating_m), distance_m)
-    times, distances, speeds = [0.0], [coast_start_m], [cruise_mps]
-    s, v, t = coast_start_m, cruise_mps, 0.0
-    while (gap := distance_m - s - v * v / (2.0 * braking_mps2)) > MIN_STEP_M:
-        h = min(FINE_STEP_M, gap)
-        resistance = (
-            model.davis_a_n + model.davis_b_n_per_mps * v + model.davis_c_n_per_mps2 * v * v
-        )
-        force = resistance + track_force_n(track_map, model, start_chainage_m + s)
-        v_next = math.sqrt(max(v * v - 2.0 * force / mass * h, MIN_COAST_SPEED_MPS**2))
-        t += 2.0 * h / (v + v_next)
-        s, v = s + h, v_next
-        times.append(t)
-        distances.append(s)
-        speeds.append(v)
-    braking = v * v / (2.0 * max(distance_m - s, 1e-6))
-    return CoastingLeg(
-        distance_m=distance_m, acceleration_mps2=acceleration_mps2, cruise_speed_mps=cruise_mps,
-        coast_start_m=coast_start_m, brake_start_m=s, braking_mps2=braking,
-        coast_times_s=np.array(times), coast_distances_m=np.array(distances),
-        coast_speeds_mps=np.array(speeds),
+    holding = min((float(result.x), slowest), key=lambda v: profiles.energy_j(v, duration_s))
+    return build_profile(
+        track, holding_speed_mps=holding,
+        braking_onset_mps=profiles.onset_mps(holding, duration_s),
+        initial_speed_mps=initial_speed_mps,
     )  # fmt: skip
 
 
@@ -293,27 +400,69 @@ def plan_energy_legs(
 ) -> tuple[OdpPlan, int]:
     """Plan stop to stop with energy-minimised legs; ``stops`` as for :func:`plan_legs`.
 
-    Returns the plan and how many legs kept the plain LSPB because no coasting profile was
-    found for them (the LSPB is always a valid plan).
+    Returns the plan and how many legs kept the plain LSPB because no energy-minimised profile
+    arrives on time for them (the LSPB, which may use harder blends, is the plan then).
     """
     baseline = plan_legs(track_map, start_chainage_m=start_chainage_m, stops=stops, cap_mps=cap_mps)
     legs: list[OdpLeg] = []
     kept_plain = 0
     for leg in baseline.legs:
         segment = leg.segment
-        limit = leg_speed_limit_mps(
-            track_map, start_chainage_m + leg.start_distance_m, segment.distance_m
-        )
-        if cap_mps is not None:
-            limit = min(limit, cap_mps)
         try:
             optimised: LegProfile = optimise_leg(
                 track_map, model, start_chainage_m=start_chainage_m + leg.start_distance_m,
-                distance_m=segment.distance_m, duration_s=segment.duration_s,
-                speed_limit_mps=limit,
+                distance_m=segment.distance_m, duration_s=segment.duration_s, cap_mps=cap_mps,
             )  # fmt: skip
         except InfeasibleLegError:
             optimised, kept_plain = segment, kept_plain + 1
         legs.append(OdpLeg(leg.start_s, leg.start_distance_m, optimised))
     plan = OdpPlan(legs, start_chainage_m=start_chainage_m, track_map=track_map, cap_mps=cap_mps)
     return plan, kept_plain
+
+
+def replan_from_state(
+    track_map: TrackMap,
+    model: PointMassParameters,
+    *,
+    now_s: float,
+    start_chainage_m: float,
+    distance_m: float,
+    speed_mps: float,
+    stop_distance_m: float,
+    cruise_mps: float,
+    arrival_s: float | None = None,
+) -> OdpPlan:
+    """A plan from the current reference (distance travelled and speed at ``now_s``) to a stop
+    ``stop_distance_m`` further on: a shortened MA, an obstacle, the EoA after an ETCS
+    intervention, or the same stop under a new TSR.
+
+    The profile follows the MRSP section by section (a new TSR included) and never exceeds it or
+    ``cruise_mps``. Without ``arrival_s`` it holds ``cruise_mps`` and brakes at the end; with
+    it, it arrives at ``arrival_s`` with the least traction energy when that is possible, else
+    as early as the limits allow.
+
+    Raises
+    ------
+    InfeasibleLegError
+        When the stop is closer than the planned braking allows from ``speed_mps``.
+    """
+    chainage = start_chainage_m + distance_m
+    profile: ProfileLeg | None = None
+    if arrival_s is not None:
+        try:
+            profile = optimise_leg(
+                track_map, model, start_chainage_m=chainage, distance_m=stop_distance_m,
+                duration_s=arrival_s - now_s, cap_mps=cruise_mps, initial_speed_mps=speed_mps,
+            )  # fmt: skip
+        except InfeasibleLegError:
+            profile = None
+    if profile is None:
+        track = LegTrack(
+            track_map, model, start_chainage_m=chainage, distance_m=stop_distance_m,
+            cap_mps=cruise_mps,
+        )  # fmt: skip
+        profile = build_profile(track, holding_speed_mps=cruise_mps, initial_speed_mps=speed_mps)
+    return OdpPlan(
+        [OdpLeg(now_s, distance_m, profile)], start_chainage_m=start_chainage_m,
+        track_map=track_map, cap_mps=cruise_mps,
+    )  # fmt: skip

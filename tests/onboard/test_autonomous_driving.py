@@ -1,6 +1,7 @@
 """AD in closed loop: ODP + NMPC on the point-mass plant with model mismatch, on bologna-ring.
 
-The seed 000 field-test journey: a lap with three stops under a 40 km/h cap.
+The seed 000 field-test journey: a lap with three stops under a 40 km/h cap, driven on the plain
+LSPB plan and on the energy-minimised plan (which coasts, so leaves the controller less margin).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import pytest
 from onboard.adf.closed_loop import ClosedLoopRecord, Stop, run_autonomous_journey
 from onboard.adf.nmpc import NmpcController
 from onboard.adf.odp import plan_legs
+from onboard.adf.odp_energy import plan_energy_legs
 from onboard.plant import URV_PARAMETERS
 from onboard.plant.point_mass import with_model_mismatch
 from trackdb import TrackMap, load_seed_line
@@ -25,10 +27,16 @@ def mismatched_urv() -> object:
     return with_model_mismatch(URV_PARAMETERS)
 
 
-@pytest.fixture(scope="module")
-def record() -> ClosedLoopRecord:
+@pytest.fixture(scope="module", params=["lspb", "energy"])
+def record(request: pytest.FixtureRequest) -> ClosedLoopRecord:
     ring = TrackMap(load_seed_line("bologna-ring"))
-    plan = plan_legs(ring, start_chainage_m=START_M, stops=STOPS, cap_mps=CAP_MPS)
+    if request.param == "lspb":
+        plan = plan_legs(ring, start_chainage_m=START_M, stops=STOPS, cap_mps=CAP_MPS)
+    else:
+        plan, kept_plain = plan_energy_legs(
+            ring, URV_PARAMETERS, start_chainage_m=START_M, stops=STOPS, cap_mps=CAP_MPS
+        )
+        assert kept_plain == 0
     return run_autonomous_journey(
         plan, stops=[Stop(distance, arrival) for distance, arrival, _ in STOPS],
         model=URV_PARAMETERS, truth=mismatched_urv(),  # type: ignore[arg-type]

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from onboard.adf.energy import optimal_leg, plan_traction_energy_j
-from onboard.adf.odp import plan_legs
+from onboard.adf.odp import InfeasibleLegError, OdpLeg, OdpPlan, plan_legs
+from onboard.adf.odp_energy import optimise_leg, plan_energy_legs, replan_from_state
 from onboard.plant import URV_PARAMETERS
-from trackdb import LineBuilder, TrackMap, load_seed_line
+from trackdb import LineBuilder, TemporarySpeedRestriction, TrackMap, load_seed_line
 
 CAP_MPS = 40 / 3.6
 
@@ -50,33 +51,115 @@ def test_the_optimum_beats_the_plain_lspb_and_keeps_the_limits() -> None:
     assert float(np.sum(ds / average)) == pytest.approx(300.0, rel=1e-6)
 
 
-def test_energy_minimised_plan_saves_against_lspb_and_nears_the_optimum() -> None:
-    from onboard.adf.odp_energy import plan_energy_legs
+def _never_above(plan: OdpPlan, cap_mps: float) -> None:
+    """The reference stays under the MRSP and the cap at every instant of the plan."""
+    for t in np.arange(0.0, plan.end_s, 0.25):
+        distance, speed = plan.reference(float(t))
+        limit = min(plan.track_map.mrsp_mps(plan.chainage_m(distance)), cap_mps)
+        assert speed <= limit + 1e-6
 
+
+def test_energy_minimised_lap_saves_against_lspb_and_nears_the_optimum() -> None:
     ring = TrackMap(load_seed_line("bologna-ring"))
     stops = [(1775.0, 300.0, 320.0), (3200.0, 550.0, 570.0), (6050.0, 1000.0, 1000.0)]
     lspb = plan_legs(ring, start_chainage_m=200.0, stops=stops, cap_mps=CAP_MPS)
     ours, kept_plain = plan_energy_legs(
         ring, URV_PARAMETERS, start_chainage_m=200.0, stops=stops, cap_mps=CAP_MPS
     )
-    assert kept_plain <= 1
-    baseline = plan_traction_energy_j(lspb, URV_PARAMETERS)
+    assert kept_plain == 0  # every leg found its profile, the downhill one too
     energy = plan_traction_energy_j(ours, URV_PARAMETERS)
-    assert energy <= 0.90 * baseline  # at least 10 % less than the plain LSPB
-    # Arrival times are kept, and the reference never exceeds the cap.
-    for (distance, arrival, _), leg in zip(stops, ours.legs, strict=True):
-        assert leg.start_s + leg.segment.duration_s == pytest.approx(arrival, abs=0.2)
-        assert ours.reference(arrival)[0] == pytest.approx(distance, abs=0.05)
-    times = np.arange(0.0, ours.end_s, 0.5)
-    assert max(ours.reference(float(t))[1] for t in times) <= CAP_MPS + 1e-6
-    # The first leg (a coasting profile) is within 5 % of the offline optimum.
-    best = optimal_leg(
-        ring, URV_PARAMETERS, start_chainage_m=200.0, distance_m=1775.0, duration_s=300.0,
-        cap_mps=CAP_MPS,
+    assert energy <= 0.90 * plan_traction_energy_j(lspb, URV_PARAMETERS)
+    best = sum(
+        optimal_leg(
+            ring, URV_PARAMETERS, start_chainage_m=200.0 + leg.start_distance_m,
+            distance_m=leg.segment.distance_m, duration_s=leg.segment.duration_s,
+            cap_mps=CAP_MPS,
+        ).traction_energy_j
+        for leg in lspb.legs
     )  # fmt: skip
-    first = plan_legs(ring, start_chainage_m=200.0, stops=stops[:1], cap_mps=CAP_MPS)
-    first_ours, _ = plan_energy_legs(
-        ring, URV_PARAMETERS, start_chainage_m=200.0, stops=stops[:1], cap_mps=CAP_MPS
+    assert energy <= 1.05 * best
+    # Arrival times and stopping points are kept.
+    for (distance, arrival, _), leg in zip(stops, ours.legs, strict=True):
+        assert leg.start_s + leg.segment.duration_s == pytest.approx(arrival, abs=0.01)
+        assert ours.reference(arrival)[0] == pytest.approx(distance, abs=1e-6)
+    _never_above(ours, CAP_MPS)
+
+
+def test_a_leg_follows_the_speed_sections_inside_it() -> None:
+    """80 → 40 → 80 km/h inside one leg: the plan runs faster than the lowest limit where the
+    line allows, coasts ahead of the 40 km/h section and brakes into it, and stays within 5 % of
+    the optimum."""
+    line = TrackMap(
+        LineBuilder(id="sections", name="Sections")
+        .straight(1500.0, speed_kmh=80).straight(800.0, speed_kmh=40)
+        .straight(1700.0, speed_kmh=80).build()
+    )  # fmt: skip
+    duration_s, cap_mps = 300.0, 80 / 3.6
+    leg = optimise_leg(
+        line, URV_PARAMETERS, start_chainage_m=0.0, distance_m=3800.0, duration_s=duration_s,
+        cap_mps=cap_mps,
+    )  # fmt: skip
+    assert leg.duration_s == pytest.approx(duration_s, abs=0.01)
+    assert leg.max_speed_mps > 40 / 3.6 + 1.0
+    slow = (leg.distances_m >= 1500.0) & (leg.distances_m <= 2300.0)
+    assert leg.speeds_mps[slow].max() <= 40 / 3.6 + 1e-6
+    # Held there, just under the limit (the plan's margin to the MRSP).
+    assert leg.speeds_mps[slow].min() >= (40 - 0.2) / 3.6 - 1e-6
+    # Coasting: the speed only falls from the end of the acceleration to the section.
+    ahead = (leg.distances_m >= 300.0) & (leg.distances_m <= 1500.0)
+    assert np.all(np.diff(leg.speeds_mps[ahead]) <= 1e-9)
+    assert leg.speeds_mps[ahead][0] - leg.speeds_mps[ahead][-1] > 40 / 3.6 * 0.2
+    best = optimal_leg(
+        line, URV_PARAMETERS, start_chainage_m=0.0, distance_m=3800.0, duration_s=duration_s,
+        cap_mps=cap_mps,
+    )  # fmt: skip
+    assert leg.traction_energy_j <= 1.05 * best.traction_energy_j
+    plan = OdpPlan([OdpLeg(0.0, 0.0, leg)], start_chainage_m=0.0, track_map=line)
+    _never_above(plan, cap_mps)
+    assert plan_traction_energy_j(plan, URV_PARAMETERS) == pytest.approx(
+        leg.traction_energy_j, rel=0.02
     )
-    assert plan_traction_energy_j(first_ours, URV_PARAMETERS) <= 1.05 * best.traction_energy_j
-    assert plan_traction_energy_j(first, URV_PARAMETERS) > best.traction_energy_j
+
+
+def test_a_steep_descent_is_held_by_the_brake_not_exceeded() -> None:
+    line = TrackMap(
+        LineBuilder(id="descent", name="Descent")
+        .straight(600.0, speed_kmh=60).straight(1400.0, speed_kmh=60, gradient_permille=-25.0)
+        .straight(500.0, speed_kmh=60).build()
+    )  # fmt: skip
+    leg = optimise_leg(
+        line, URV_PARAMETERS, start_chainage_m=0.0, distance_m=2400.0, duration_s=220.0,
+        cap_mps=60 / 3.6,
+    )  # fmt: skip
+    assert leg.duration_s == pytest.approx(220.0, abs=0.01)
+    assert leg.max_speed_mps <= 60 / 3.6 + 1e-6
+    assert leg.speeds_mps[-1] == 0.0
+
+
+def test_an_impossible_schedule_is_refused() -> None:
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    with pytest.raises(InfeasibleLegError, match="more than the"):
+        optimise_leg(
+            ring, URV_PARAMETERS, start_chainage_m=200.0, distance_m=1775.0, duration_s=100.0,
+            cap_mps=CAP_MPS,
+        )  # fmt: skip
+
+
+def test_replanning_from_a_moving_train_obeys_a_new_restriction() -> None:
+    """A TSR of 20 km/h appears 300 m ahead of a train at 40 km/h: the new plan brakes to it
+    before it starts, holds it through it, and stops at the stop."""
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    ring.add_temporary_speed_restriction(
+        TemporarySpeedRestriction(id="tsr-1", start_m=800.0, end_m=1100.0, speed_mps=20 / 3.6)
+    )
+    plan = replan_from_state(
+        ring, URV_PARAMETERS, now_s=50.0, start_chainage_m=200.0, distance_m=300.0,
+        speed_mps=CAP_MPS, stop_distance_m=1275.0, cruise_mps=CAP_MPS,
+    )  # fmt: skip
+    assert plan.reference(50.0) == pytest.approx((300.0, CAP_MPS))
+    _never_above(plan, CAP_MPS)
+    assert plan.reference(plan.end_s) == pytest.approx((1575.0, 0.0))
+    times = np.arange(50.0, plan.end_s, 0.5)
+    in_tsr = [plan.reference(float(t)) for t in times]
+    assert max(v for d, v in in_tsr if 600.0 <= d <= 900.0) <= 20 / 3.6 + 1e-6
+    assert max(v for d, v in in_tsr if d > 950.0) > 30 / 3.6  # back up after it
