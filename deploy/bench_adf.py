@@ -134,7 +134,7 @@ def handover(console: Console, plots_dir: Path | None) -> HandoverRecord:
 
 
 def bench_adf(*, plots_dir: Path | None = None) -> dict[str, dict[str, float]]:
-    console = Console(width=100)
+    console = Console(width=130)
     energy_comparison(console)
     handover(console, plots_dir)
     results: dict[str, dict[str, float]] = {}

@@ -3,16 +3,20 @@
 Every message forbids unknown fields, carries ``schema_version`` and uses SI units (m, s, m/s,
 m/s², N). The session messages follow SUBSET-126 in spirit (DOMAIN.md §2.3): a handshake request
 (HSReq), its acceptance (HSAck) or rejection (HSRej), a termination; journey profiles (JP) are
-delivered and acknowledged (JPAck); status reports (STR) flow periodically.
+delivered and acknowledged (JPAck); status reports (STR) flow periodically. The RBC emulator of
+the trackside sends movement authorities (MA, after SUBSET-026 packet 15, DOMAIN.md §1.7) and the
+onboard acknowledges them.
 
 Abbreviations: ATO (automatic train operation), ATO-OB / ATO-TS (onboard / trackside), ETCS
 (European Train Control System), SC (supervisory controller of the ADF), ADF (autonomous driving
 function), RD / AD (remote / autonomous driving), JP (journey profile), TP (timing point),
-EB (emergency brake), STR (status report).
+EB (emergency brake), STR (status report), RBC (radio block centre), MA (movement authority),
+EoA (end of authority), SvL (supervised location).
 """
 
 from __future__ import annotations
 
+import math
 from enum import StrEnum
 from typing import Annotated, Literal, Self
 
@@ -35,6 +39,14 @@ __all__ = [
     "LineVersionReply",
     "LineVersionRequest",
     "Message",
+    "MovementAuthorityAck",
+    "MovementAuthorityChange",
+    "MovementAuthorityEnd",
+    "MovementAuthorityExtent",
+    "MovementAuthorityMessage",
+    "MovementAuthorityReply",
+    "MovementAuthorityRequest",
+    "MovementAuthoritySection",
     "PingCommand",
     "RemoteDrivingTargetCommand",
     "ScState",
@@ -44,6 +56,7 @@ __all__ = [
     "SessionRequest",
     "SessionResponse",
     "SessionTermination",
+    "StatusAck",
     "StatusReport",
     "SupervisionStatus",
     "TimingPoint",
@@ -58,7 +71,9 @@ VehicleId = Annotated[
     Field(min_length=1, max_length=32, pattern=r"^[A-Za-z0-9_-]+$", description="Vehicle id"),
 ]
 NonNegativeFloat = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
+PositiveFloat = Annotated[float, Field(gt=0.0, allow_inf_nan=False)]
 FiniteFloat = Annotated[float, Field(allow_inf_nan=False)]
+LineId = Annotated[str, Field(min_length=1, max_length=64, description="Line id")]
 
 
 class AtoState(StrEnum):
@@ -328,9 +343,182 @@ class SessionReject(Message):
 SessionResponse = Annotated[SessionAccept | SessionReject, Field(discriminator="type")]
 
 
+class StatusAck(Message):
+    """The trackside's acknowledgement of a status report (STRAck): one report may be
+    outstanding at a time, and a session with no acknowledgement within the response timeout
+    is lost."""
+
+    vehicle_id: VehicleId
+    seq: int = Field(ge=0, description="The acknowledged report's counter")
+
+
 class SessionTermination(Message):
     """Either side ends the session (SESSTerm / SESSTermReq)."""
 
     vehicle_id: VehicleId
     by: Literal["onboard", "trackside"]
     reason: str = Field(max_length=256)
+
+
+class MovementAuthoritySection(BaseModel):
+    """A section of an MA (L_SECTION) with its optional timer (Q_SECTIONTIMER)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    length_m: PositiveFloat = Field(description="L_SECTION: length of the section [m]")
+    timer_s: NonNegativeFloat | None = Field(
+        default=None, description="T_SECTIONTIMER, counted from the MA's reception [s]"
+    )
+    timer_stop_m: NonNegativeFloat = Field(
+        default=0.0,
+        description="D_SECTIONTIMERSTOPLOC: from the section's start to where the timer stops [m]",
+    )
+
+
+_MA_LENGTH_TOLERANCE_REL = 1e-9
+_MA_LENGTH_TOLERANCE_M = 1e-6
+"""How closely the sections must add up to the MA's length: the onboard's own tolerance."""
+
+
+class MovementAuthorityEnd(BaseModel):
+    """The end of an MA: the EoA's chainage and what lies beyond it (packet 15's end fields).
+
+    The danger point, the overlap, their timers and the release speed belong to the location of
+    the EoA, so an extension or a shortening gives them afresh with the new EoA.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    end_of_authority_m: FiniteFloat = Field(description="Chainage of the end of authority [m]")
+    danger_point_m: NonNegativeFloat = Field(
+        default=0.0, description="D_DP: from the EoA to the danger point [m]; 0 for none"
+    )
+    overlap_m: NonNegativeFloat = Field(
+        default=0.0, description="D_OL: from the EoA to the end of the overlap [m]; 0 for none"
+    )
+    overlap_timer_s: NonNegativeFloat | None = Field(
+        default=None, description="T_OL: overlap timer [s]; none for no timer"
+    )
+    overlap_timer_start_m: NonNegativeFloat = Field(
+        default=0.0, description="D_STARTOL: the overlap timer starts this far before the EoA [m]"
+    )
+    release_speed_mps: NonNegativeFloat | None = Field(
+        default=None, description="Release speed [m/s]; none: calculated on board"
+    )
+
+    @model_validator(mode="after")
+    def _overlap_consistent(self) -> Self:
+        if self.overlap_m and self.overlap_m < self.danger_point_m:
+            raise ValueError(
+                f"the overlap ({self.overlap_m} m) must end beyond the danger point "
+                f"({self.danger_point_m} m)"
+            )
+        if not self.overlap_m and (self.overlap_timer_s is not None or self.overlap_timer_start_m):
+            raise ValueError("an overlap timer needs an overlap (overlap_m > 0)")
+        return self
+
+    @property
+    def supervised_location_m(self) -> float:
+        """Chainage of the SvL [m]: end of overlap, else danger point, else EoA."""
+        return self.end_of_authority_m + (self.overlap_m or self.danger_point_m)
+
+
+class MovementAuthorityExtent(MovementAuthorityEnd):
+    """Where an MA reaches: from ``start_m`` (the reference location) to its end.
+
+    Chainages are the line's. On a ring the EoA is unwrapped from the start: it may exceed the
+    line's length, and ``end_of_authority_m - start_m`` is always the MA's length. The onboard
+    takes ``start_m`` as the MA's reference and the other fields as distances from it or from
+    the EoA, as in packet 15.
+    """
+
+    start_m: FiniteFloat = Field(description="Chainage of the MA's start, its reference [m]")
+    sections: tuple[MovementAuthoritySection, ...] = Field(
+        default=(), max_length=32, description="Sections from the start; they add up to the EoA"
+    )
+    track_description_m: PositiveFloat | None = Field(
+        default=None,
+        description="From the start, how far the SSP and gradient sent with the MA reach [m]; "
+        "none: up to the SvL",
+    )
+
+    @model_validator(mode="after")
+    def _end_beyond_start(self) -> Self:
+        length_m = self.length_m
+        if not length_m > 0.0:
+            raise ValueError(
+                f"the EoA ({self.end_of_authority_m} m) must lie beyond the start "
+                f"({self.start_m} m)"
+            )
+        if self.sections:
+            total_m = sum(section.length_m for section in self.sections)
+            if not math.isclose(
+                total_m, length_m, rel_tol=_MA_LENGTH_TOLERANCE_REL, abs_tol=_MA_LENGTH_TOLERANCE_M
+            ):
+                raise ValueError(
+                    f"the sections add up to {total_m} m, not the MA's length {length_m} m"
+                )
+        return self
+
+    @property
+    def length_m(self) -> float:
+        """From the start to the EoA [m]."""
+        return self.end_of_authority_m - self.start_m
+
+
+class MovementAuthorityChange(StrEnum):
+    """What an RBC message did to the vehicle's MA."""
+
+    ISSUED = "issued"
+    EXTENDED = "extended"
+    SHORTENED = "shortened"
+    REVOKED = "revoked"
+    """Withdrawn: the onboard applies it as an unconditional emergency stop."""
+
+
+class MovementAuthorityMessage(Message):
+    """An MA from the RBC to one vehicle: granted (issued, extended, shortened) or revoked.
+
+    ``ma_id`` grows by one with every change for the vehicle, so the onboard can drop a stale
+    or repeated one; ``authority`` is ``None`` exactly when the MA is revoked.
+    """
+
+    vehicle_id: VehicleId
+    ma_id: int = Field(ge=1, description="The RBC's counter for the vehicle, +1 per change")
+    change: MovementAuthorityChange
+    issued_at_s: NonNegativeFloat = Field(description="Issue time on the RBC's clock [s]")
+    line_id: LineId
+    line_version: str = Field(min_length=1, max_length=128, description="Track-data version")
+    authority: MovementAuthorityExtent | None = Field(
+        description="The MA granted; none when revoked"
+    )
+
+    @model_validator(mode="after")
+    def _authority_unless_revoked(self) -> Self:
+        revoked = self.change is MovementAuthorityChange.REVOKED
+        if revoked != (self.authority is None):
+            raise ValueError("a revoked MA carries no authority, and every other MA carries one")
+        return self
+
+
+class MovementAuthorityRequest(Message):
+    """An onboard asks for its current MA (at start-up, or after it lost the stream)."""
+
+    vehicle_id: VehicleId
+
+
+class MovementAuthorityReply(Message):
+    """The RBC's current MA for the vehicle; ``None`` when it holds none."""
+
+    vehicle_id: VehicleId
+    movement_authority: MovementAuthorityMessage | None = None
+
+
+class MovementAuthorityAck(Message):
+    """The onboard's acknowledgement of an MA: applied, or refused with a reason."""
+
+    vehicle_id: VehicleId
+    ma_id: int = Field(ge=1)
+    accepted: bool
+    reason: str | None = Field(default=None, max_length=256)
+    sim_time_s: NonNegativeFloat = Field(description="Onboard simulated time [s]")

@@ -34,8 +34,12 @@ __all__ = [
     "JOURNEY_PROFILE",
     "JOURNEY_PROFILE_ACK",
     "LINE_VERSION",
+    "MOVEMENT_AUTHORITY",
+    "MOVEMENT_AUTHORITY_ACK",
+    "MOVEMENT_AUTHORITY_CURRENT",
     "SESSION",
     "SESSION_TERMINATION",
+    "STATUS_ACK",
     "STATUS",
     "TOPICS",
     "Delivery",
@@ -190,9 +194,25 @@ SESSION: Topic[m.SessionRequest] = Topic(
     "session", "ato/ts/session/{vehicle}", m.SessionRequest,
     Direction.ONBOARD_TO_TRACKSIDE, Delivery.QUERY, reply_type=m.SessionResponse,
 )  # fmt: skip
+STATUS_ACK: Topic[m.StatusAck] = Topic(
+    "status_ack", "ato/ts/{vehicle}/status_ack", m.StatusAck,
+    Direction.TRACKSIDE_TO_ONBOARD, Delivery.FIFO,
+)  # fmt: skip
 SESSION_TERMINATION: Topic[m.SessionTermination] = Topic(
     "session_termination", "ato/session/{vehicle}/termination", m.SessionTermination,
     Direction.ANY, Delivery.FIFO,
+)  # fmt: skip
+MOVEMENT_AUTHORITY: Topic[m.MovementAuthorityMessage] = Topic(
+    "movement_authority", "ato/ts/rbc/{vehicle}/ma", m.MovementAuthorityMessage,
+    Direction.TRACKSIDE_TO_ONBOARD, Delivery.FIFO,
+)  # fmt: skip
+MOVEMENT_AUTHORITY_CURRENT: Topic[m.MovementAuthorityRequest] = Topic(
+    "movement_authority_current", "ato/ts/rbc/{vehicle}/current_ma", m.MovementAuthorityRequest,
+    Direction.ONBOARD_TO_TRACKSIDE, Delivery.QUERY, reply_type=m.MovementAuthorityReply,
+)  # fmt: skip
+MOVEMENT_AUTHORITY_ACK: Topic[m.MovementAuthorityAck] = Topic(
+    "movement_authority_ack", "ato/ob/{vehicle}/ma_ack", m.MovementAuthorityAck,
+    Direction.ONBOARD_TO_TRACKSIDE, Delivery.FIFO,
 )  # fmt: skip
 
 ALIVE_ONBOARD = "ato/alive/ob/{vehicle}"
@@ -208,5 +228,9 @@ TOPICS: tuple[Topic[Any], ...] = (
     JOURNEY_PROFILE_ACK,
     LINE_VERSION,
     SESSION,
+    STATUS_ACK,
     SESSION_TERMINATION,
+    MOVEMENT_AUTHORITY,
+    MOVEMENT_AUTHORITY_CURRENT,
+    MOVEMENT_AUTHORITY_ACK,
 )

@@ -34,6 +34,10 @@ class Settings(BaseSettings):
         default=True,
         description="At start-up, import each shipped seed line whose id is not stored yet",
     )
+    rbc_scenario: Path | None = Field(
+        default=None,
+        description="RBC scenario script (YAML, JSON or TOML) run from start-up, on wall time",
+    )
 
     def zenoh(self) -> ZenohSettings:
         return ZenohSettings(

@@ -6,8 +6,12 @@
     ├── AuthenticationError      bad credentials or token
     ├── PermissionDeniedError    role too low for the action
     ├── NotFoundError (LookupError)
+    │   └── NoMovementAuthorityError       the RBC holds no MA for the vehicle
     ├── ConflictError            the resource exists or is held by someone else
-    └── InvalidRequestError (ValueError)   values the service cannot act on (a bad range)
+    ├── InvalidRequestError (ValueError)   values the service cannot act on (a bad range)
+    │   └── MovementAuthorityRefusedError  the RBC cannot issue or change an MA so
+    │       └── EndOfAuthorityBehindVehicleError   the EoA at or behind the vehicle's position
+    └── RbcScenarioError (ValueError)      an RBC scenario script that does not load or validate
 
 The services also let trackdb's errors through (``trackdb.LineValidationError``,
 ``trackdb.LineNotFoundError``, ``trackdb.LineConflictError``); the routes map them too.
@@ -18,9 +22,13 @@ from __future__ import annotations
 __all__ = [
     "AuthenticationError",
     "ConflictError",
+    "EndOfAuthorityBehindVehicleError",
     "InvalidRequestError",
+    "MovementAuthorityRefusedError",
+    "NoMovementAuthorityError",
     "NotFoundError",
     "PermissionDeniedError",
+    "RbcScenarioError",
     "TracksideError",
 ]
 
@@ -47,3 +55,28 @@ class ConflictError(TracksideError):
 
 class InvalidRequestError(TracksideError, ValueError):
     """The request's values are well-formed but the service cannot act on them."""
+
+
+class NoMovementAuthorityError(NotFoundError):
+    """The RBC holds no movement authority for the vehicle (never issued, or revoked)."""
+
+
+class MovementAuthorityRefusedError(InvalidRequestError):
+    """The RBC cannot issue or change the movement authority as asked; nothing was sent."""
+
+
+class EndOfAuthorityBehindVehicleError(MovementAuthorityRefusedError):
+    """The asked EoA lies at or behind the vehicle's last reported front end: it would trip."""
+
+    def __init__(self, message: str, *, end_of_authority_m: float, position_m: float) -> None:
+        super().__init__(message)
+        self.end_of_authority_m = end_of_authority_m
+        self.position_m = position_m
+
+
+class RbcScenarioError(TracksideError, ValueError):
+    """An RBC scenario script that cannot be read or does not validate; lists every problem."""
+
+    def __init__(self, message: str, problems: list[str] | None = None) -> None:
+        super().__init__(message)
+        self.problems = problems or [message]

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import AsyncIterator
 from contextlib import AbstractContextManager, asynccontextmanager, nullcontext
+from functools import partial
 
 import zenoh
 from fastapi import APIRouter, FastAPI
@@ -13,14 +15,17 @@ from fastapi.staticfiles import StaticFiles
 from sqlalchemy.orm import Session, sessionmaker
 
 from protocol import open_session
+from protocol.messages import StatusReport
 from trackdb import LineNotFoundError
-from trackdb.storage import current_version
-from trackside.api.routes import auth, journeys, lines, vehicles, ws
+from trackdb.storage import current_version, line_versions
+from trackside.api.routes import auth, journeys, lines, rbc, vehicles, ws
 from trackside.api.routes import users as users_routes
 from trackside.bridge import ZenohBridge
 from trackside.config import Settings
 from trackside.db import create_database_engine, migrate
 from trackside.models import Role
+from trackside.rbc import LineInfo, RbcEmulator
+from trackside.rbc_scenario import RbcScenarioRunner, RbcScenarioThread, load_scenario
 from trackside.services import lines as lines_service
 from trackside.services import users
 
@@ -46,6 +51,25 @@ def _line_version(factory: sessionmaker[Session], line_id: str) -> str | None:
             return None
 
 
+def _line_info(factory: sessionmaker[Session], line_id: str) -> LineInfo | None:
+    """The current version and extent of a stored line, for the RBC's checks."""
+    with factory() as db:
+        try:
+            summaries = line_versions(db, line_id)
+        except LineNotFoundError:
+            return None
+    for summary in summaries:
+        if summary.current:
+            return LineInfo(version=summary.version, length_m=summary.length_m, ring=summary.ring)
+    return None
+
+
+def _reported_status(bridge: ZenohBridge, vehicle_id: str) -> StatusReport | None:
+    """The vehicle's latest status while it is alive, for the RBC's position checks."""
+    snapshot = bridge.snapshot(vehicle_id)
+    return None if snapshot is None else snapshot.status
+
+
 def _seed_lines(settings: Settings, factory: sessionmaker[Session]) -> None:
     if settings.seed_lines:
         with factory() as db, db.begin():
@@ -59,6 +83,7 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        script = None if settings.rbc_scenario is None else load_scenario(settings.rbc_scenario)
         engine = create_database_engine(settings.database_url)
         migrate(engine)
         factory = sessionmaker(engine, expire_on_commit=False)
@@ -78,9 +103,23 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
                 line_version=lambda line_id: _line_version(factory, line_id),
             )
             app.state.bridge = bridge
+            started_s = time.monotonic()
+            rbc_emulator = RbcEmulator(
+                clock=lambda: time.monotonic() - started_s,
+                session=session,
+                line_info=partial(_line_info, factory),
+                positions=partial(_reported_status, bridge),
+            )
+            app.state.rbc = rbc_emulator
+            scenario = None
+            if script is not None:
+                scenario = RbcScenarioThread(RbcScenarioRunner(script, rbc_emulator))
             try:
                 yield
             finally:
+                if scenario is not None:
+                    scenario.close()
+                rbc_emulator.close()
                 bridge.close()
                 engine.dispose()
 
@@ -96,6 +135,7 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
     api.include_router(vehicles.router)
     api.include_router(lines.router)
     api.include_router(journeys.router)
+    api.include_router(rbc.router)
     api.include_router(ws.router)
     app.include_router(api)
 

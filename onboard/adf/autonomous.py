@@ -1,10 +1,12 @@
 """Autonomous driving (AD): the NMPC following the ODP along the line.
 
-Builds the NMPC's per-stage reference from the plan: p_ref and v_ref at each step of the horizon,
-the speed ceiling v_max from the MRSP around the reference position (never above it; the journey's
-cap is the reference's business, so that the NMPC keeps room to catch up), and the track
-forces (gradient and curve) at the reference position, as the seed's control-oriented model
-takes them. At standstill at a stop, with the reference at rest, the brake holds the vehicle.
+Builds the NMPC's per-stage reference from the plan: p_ref and v_ref at each step of the horizon;
+the speed ceiling v_max from the MRSP around the reference position (never above it; the
+journey's cap is the reference's business, so that the NMPC keeps room to catch up), lowered to
+the ETCS permitted speed when the ATO-OB sets it (the EoA is the plan's: the ADF replans to stop
+before it); and the track forces (gradient and curve) at the reference position, as the seed's
+control-oriented model takes them. At standstill at a stop, with the reference at rest, the
+brake holds the vehicle.
 """
 
 from __future__ import annotations
@@ -21,6 +23,10 @@ __all__ = ["AutonomousDriving"]
 
 STANDSTILL_MPS = 0.05
 CEILING_WINDOW_M = np.array([-5.0, 0.0, 5.0])
+REACHABLE_BRAKING_MPS2 = 0.7
+REACHABLE_DELAY_S = 1.2
+"""Full braking as the NMPC can reach it: its rate bound and the actuator's lag take about a
+second to build the brake up; the URV then brakes at 0.88–0.93 m/s², taken with a margin."""
 
 
 class AutonomousDriving:
@@ -35,8 +41,18 @@ class AutonomousDriving:
         config = controller.config
         self._offsets_s = np.arange(1, config.horizon_steps + 1) * config.step_s
         self.last_result: NmpcResult | None = None
+        self.permitted_speed_mps = math.inf
+        """The ETCS permitted speed [m/s], a ceiling over the whole horizon."""
 
-    def reference(self, now_s: float) -> NmpcReference:
+    def set_permitted_speed(self, permitted_speed_mps: float) -> None:
+        """The ETCS permitted speed the ATO-OB controller passes on: a ceiling over the horizon.
+        The EoA is the plan's business: the ADF replans to stop before it."""
+        self.permitted_speed_mps = permitted_speed_mps
+
+    def reference(self, now_s: float, *, speed_mps: float | None = None) -> NmpcReference:
+        """The horizon's reference at ``now_s``. With the measured ``speed_mps``, the permitted
+        speed is not set below what full braking can reach from that speed (a ceiling the
+        vehicle cannot meet would make the NLP infeasible; ETCS supervises beyond)."""
         track_map = self.plan.track_map
         positions, speeds, forces = [], [], []
         for t in now_s + self._offsets_s:
@@ -49,6 +65,14 @@ class AutonomousDriving:
         origin = self.plan.start_chainage_m
         around = np.add.outer(np.array(positions), CEILING_WINDOW_M)
         ceilings = track_map.mrsp_ahead_mps(origin, around).min(axis=1)
+        permitted = np.full(len(positions), self.permitted_speed_mps)
+        if speed_mps is not None:
+            # A permitted speed that drops at once (an ETCS change) is a ceiling the vehicle
+            # can meet only after braking; the MRSP ahead is known in advance and kept.
+            delay = np.maximum(self._offsets_s - REACHABLE_DELAY_S, 0.0)
+            reachable = np.maximum(speed_mps - REACHABLE_BRAKING_MPS2 * delay, 0.0)
+            permitted = np.maximum(permitted, reachable)
+        ceilings = np.minimum(ceilings, permitted)
         return NmpcReference(np.array(positions), np.array(speeds), ceilings, np.array(forces))
 
     def _track_force_n(self, chainage_m: float) -> float:
@@ -74,7 +98,7 @@ class AutonomousDriving:
             applied_force_n = max(applied_force_n, 0.0)
         result = self.controller.solve(
             position_m=distance_m, speed_mps=speed_mps, applied_force_n=applied_force_n,
-            reference=self.reference(now_s),
+            reference=self.reference(now_s, speed_mps=speed_mps),
         )  # fmt: skip
         self.last_result = result
         return result.force_n

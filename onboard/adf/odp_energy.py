@@ -233,6 +233,8 @@ class _Profiles:
         # a drop to brake for.
         limits = np.minimum(track.ceilings_mps, targets.max())
         ends = np.flatnonzero(limits[1:] < limits[:-1] - SPEED_TOLERANCE_MPS) + 1
+        targets_v2 = (targets * targets).tolist()
+        track_n = track.track_forces_n.tolist()
         for end in (*ends[ends < n], n):
             low = 0.0 if end == n else float(targets[end])
             onset = max(onset_mps, low)
@@ -244,44 +246,69 @@ class _Profiles:
             curves[span] = np.minimum(curves[span], np.sqrt(low**2 + 2.0 * braking * to_end_m))
             if first < 0:
                 continue
+            curves_list = curves.tolist()
             # The coasting part, backwards from the onset point.
             force = track.resistance_n(onset) + float(track.track_forces_n[first])
             v2 = onset**2 + 2.0 * force / track.effective_mass_kg * (onset_m - first * h)
+            m = track.model
+            a_n, b_n, c_n = m.davis_a_n, m.davis_b_n_per_mps, m.davis_c_n_per_mps2
+            coast_k = 2.0 * h / track.effective_mass_kg
             for i in range(first, -1, -1):
                 # On a descent coasting gains speed, so backwards the curve falls; it is held
                 # at a crawl, as the forward run is, so that a lower U always coasts longer.
                 v2 = max(v2, CRAWL_MPS**2)
-                if v2 >= float(targets[i]) ** 2:
+                if v2 >= targets_v2[i]:
                     break
                 v = math.sqrt(v2)
-                curves[i] = min(float(curves[i]), v)
+                if v < curves_list[i]:
+                    curves_list[i] = v
                 if i > 0:
-                    v2 -= track.coast_delta_v2(i - 1, v)
+                    v2 += coast_k * (a_n + b_n * v + c_n * v2 + track_n[i - 1])
+            curves = np.minimum(curves, np.array(curves_list))
         return curves
 
     def speeds(self, holding_mps: float, onset_mps: float) -> FloatArray:
         """The profile: drive below the coasting curves, coast on or above them, never above
-        the braking envelope."""
+        the braking envelope. (The hot loop of the planner: plain floats and lists.)"""
         track = self.track
-        n = track.steps
+        n, h = track.steps, track.step_m
         targets, envelope = self.envelope(holding_mps)
-        coasting = self.coasting_curves(targets, onset_mps)
-        speeds = np.empty(n + 1)
-        speeds[0] = min(self.initial_mps, float(envelope[0]))
+        coasting = self.coasting_curves(targets, onset_mps).tolist()
+        envelope_v2 = (envelope * envelope).tolist()
+        coasting_v2 = [c * c for c in coasting]
+        track_n = track.track_forces_n.tolist()
+        m = track.model
+        a_n, b_n, c_n = m.davis_a_n, m.davis_b_n_per_mps, m.davis_c_n_per_mps2
+        f_max, p_max = m.max_traction_force_n, m.max_traction_power_w
+        mass = track.effective_mass_kg
+        coast_k = 2.0 * h / mass
+        a_max = track.max_acceleration_mps2
+        crawl_v2 = CRAWL_MPS**2
+        v = min(self.initial_mps, float(envelope[0]))
+        out = [v]
+        sqrt = math.sqrt
         for i in range(n):
-            v = float(speeds[i])
-            if v >= float(coasting[i]) - SPEED_TOLERANCE_MPS:
-                v2 = v * v + track.coast_delta_v2(i, v)
+            vv = v * v
+            resistance = a_n + b_n * v + c_n * vv + track_n[i]
+            if v >= coasting[i] - SPEED_TOLERANCE_MPS:
+                v2 = vv - coast_k * resistance
             else:
-                push = track.available_traction_n(v) - track.resistance_n(v)
-                acceleration = min(
-                    track.max_acceleration_mps2,
-                    (push - float(track.track_forces_n[i])) / track.effective_mass_kg,
-                )
-                v2 = min(v * v + 2.0 * acceleration * track.step_m, float(coasting[i + 1]) ** 2)
-            v2 = max(v2, CRAWL_MPS**2 if i < n - 1 else 0.0)
-            speeds[i + 1] = math.sqrt(min(v2, float(envelope[i + 1]) ** 2))
-        return speeds
+                traction = f_max
+                if v > MIN_POWER_SPEED_MPS and p_max < f_max * v:
+                    traction = p_max / v
+                acceleration = (traction - resistance) / mass
+                if acceleration > a_max:
+                    acceleration = a_max
+                v2 = vv + 2.0 * acceleration * h
+                if v2 > coasting_v2[i + 1]:
+                    v2 = coasting_v2[i + 1]
+            if v2 < crawl_v2 and i < n - 1:
+                v2 = crawl_v2
+            if v2 > envelope_v2[i + 1]:
+                v2 = envelope_v2[i + 1]
+            v = sqrt(v2) if v2 > 0.0 else 0.0
+            out.append(v)
+        return np.array(out)
 
     def time_s(self, holding_mps: float, onset_mps: float) -> float:
         return float(_cumulative(self.track, self.speeds(holding_mps, onset_mps))[0][-1])
@@ -293,15 +320,8 @@ class _Profiles:
             return holding_mps
         if self.time_s(holding_mps, 0.0) <= duration_s:
             return 0.0
-        return float(
-            brentq(
-                lambda u: self.time_s(holding_mps, u) - duration_s,
-                0.0,
-                holding_mps,
-                xtol=1e-5,
-                rtol=1e-10,
-            )  # fmt: skip
-        )
+        slack = lambda u: self.time_s(holding_mps, u) - duration_s  # noqa: E731
+        return float(brentq(slack, 0.0, holding_mps, xtol=1e-4, rtol=1e-10))
 
     def energy_j(self, holding_mps: float, duration_s: float) -> float:
         speeds = self.speeds(holding_mps, self.onset_mps(holding_mps, duration_s))
@@ -380,7 +400,7 @@ def optimise_leg(
         )
     result = minimize_scalar(
         lambda v: profiles.energy_j(v, duration_s), bounds=(slowest, fastest), method="bounded",
-        options={"xatol": 1e-3},
+        options={"xatol": 5e-3},
     )  # fmt: skip
     holding = min((float(result.x), slowest), key=lambda v: profiles.energy_j(v, duration_s))
     return build_profile(

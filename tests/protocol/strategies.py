@@ -114,6 +114,67 @@ line_version_replies = st.builds(
     m.LineVersionReply, line_id=names, version=st.none() | st.text(min_size=1, max_size=128)
 )
 
+chainages = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False)
+lengths = st.floats(min_value=1e-3, max_value=1e5, allow_nan=False)
+ma_ids = st.integers(min_value=1, max_value=2**53)
+
+
+@st.composite
+def movement_authority_ends(draw: st.DrawFn) -> m.MovementAuthorityEnd:
+    overlap = draw(st.booleans())
+    danger_point_m = draw(st.just(0.0) | st.floats(min_value=0.0, max_value=1e3))
+    overlap_m = danger_point_m + draw(lengths) if overlap else 0.0
+    return m.MovementAuthorityEnd(
+        end_of_authority_m=draw(chainages), danger_point_m=danger_point_m, overlap_m=overlap_m,
+        overlap_timer_s=draw(st.none() | non_negative) if overlap else None,
+        overlap_timer_start_m=draw(st.floats(min_value=0.0, max_value=1e3)) if overlap else 0.0,
+        release_speed_mps=draw(st.none() | st.floats(min_value=0.0, max_value=100.0)),
+    )  # fmt: skip
+
+
+ma_sections = st.builds(
+    m.MovementAuthoritySection,
+    length_m=lengths, timer_s=st.none() | non_negative,
+    timer_stop_m=st.floats(min_value=0.0, max_value=1e5),
+)  # fmt: skip
+
+
+@st.composite
+def movement_authority_extents(draw: st.DrawFn) -> m.MovementAuthorityExtent:
+    end = draw(movement_authority_ends())
+    start_m = draw(chainages)
+    sections = draw(st.lists(ma_sections, max_size=5))
+    length_m = sum(section.length_m for section in sections) if sections else draw(lengths)
+    return m.MovementAuthorityExtent(
+        **end.model_dump(exclude={"end_of_authority_m"}),
+        start_m=start_m, end_of_authority_m=start_m + length_m, sections=tuple(sections),
+        track_description_m=draw(st.none() | lengths),
+    )  # fmt: skip
+
+
+@st.composite
+def movement_authority_messages(draw: st.DrawFn) -> m.MovementAuthorityMessage:
+    change = draw(_enum(m.MovementAuthorityChange))
+    revoked = change is m.MovementAuthorityChange.REVOKED
+    return m.MovementAuthorityMessage(
+        vehicle_id=draw(vehicle_ids), ma_id=draw(ma_ids), change=change,
+        issued_at_s=draw(non_negative), line_id=draw(names),
+        line_version=draw(st.text(min_size=1, max_size=128)),
+        authority=None if revoked else draw(movement_authority_extents()),
+    )  # fmt: skip
+
+
+movement_authority_requests = st.builds(m.MovementAuthorityRequest, vehicle_id=vehicle_ids)
+movement_authority_replies = st.builds(
+    m.MovementAuthorityReply,
+    vehicle_id=vehicle_ids, movement_authority=st.none() | movement_authority_messages(),
+)  # fmt: skip
+movement_authority_acks = st.builds(
+    m.MovementAuthorityAck,
+    vehicle_id=vehicle_ids, ma_id=ma_ids, accepted=st.booleans(),
+    reason=st.none() | st.text(max_size=256), sim_time_s=non_negative,
+)  # fmt: skip
+
 STRATEGIES: dict[type[m.Message], st.SearchStrategy[Any]] = {
     m.StatusReport: status_reports,
     m.Event: events,
@@ -127,4 +188,9 @@ STRATEGIES: dict[type[m.Message], st.SearchStrategy[Any]] = {
     m.SessionAccept: session_accepts,
     m.SessionReject: session_rejects,
     m.SessionTermination: session_terminations,
+    m.StatusAck: st.builds(m.StatusAck, vehicle_id=vehicle_ids, seq=st.integers(0, 2**31)),
+    m.MovementAuthorityMessage: movement_authority_messages(),
+    m.MovementAuthorityRequest: movement_authority_requests,
+    m.MovementAuthorityReply: movement_authority_replies,
+    m.MovementAuthorityAck: movement_authority_acks,
 }

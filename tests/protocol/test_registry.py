@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from protocol import KeyExpressionError, PayloadError
@@ -50,3 +52,9 @@ def test_rates_and_deliveries() -> None:
     assert STATUS.period_s == pytest.approx(0.2)
     assert COMMAND.delivery is Delivery.QUERY
     assert all(topic.reply_type is not None for topic in TOPICS if topic.delivery is Delivery.QUERY)
+
+
+def test_every_topic_is_documented_in_the_keyspace_page() -> None:
+    page = (Path(__file__).resolve().parents[2] / "docs" / "keyspace.md").read_text()
+    missing = [t.key_template for t in TOPICS if f"`{t.key_template}`" not in page]
+    assert missing == []

@@ -1,0 +1,283 @@
+"""The Autonomous Driving Function as the onboard node runs it (seed 000 §5).
+
+It bundles the supervisory controller, the RD PID, the NMPC with the ODP of the current journey,
+and turns the ATO-OB controller's requests and the ETCS limits into one force demand per control
+step:
+
+- ``remote(target)``: remote driving at the operator's target (hand-over from AD if engaged);
+- ``start_journey(plan)`` then ``engage()``: autonomous driving on the journey's ODP, whose time
+  and distance count from the start of the journey;
+- ``disengage()``: the SC goes OFF and the vehicle is held by the brake;
+- ``set_etcs_limits(permitted, eoa_ahead, position_m=...)``: the ETCS constraints, never
+  exceeded: the RD target and the NMPC's ceilings are capped by the permitted speed, and AD
+  replans to stop before the EoA when it falls short of the next stop;
+- ``stop_at_next_stopping_point()``: the unattended fallback when the trackside is lost while
+  engaged: the ODP is replanned from the current state to the next stop of the journey;
+- ``step(...)``: the force demand, with the ATO-OB's traction cut-off and service brake applied
+  last.
+
+Positions are the plant's distance travelled [m] (on a ring it keeps growing), times the node's
+[s].
+"""
+
+from __future__ import annotations
+
+import math
+
+from onboard.adf.autonomous import AutonomousDriving
+from onboard.adf.journey import JourneyPlan, JourneyStop
+from onboard.adf.nmpc import NmpcConfig, NmpcController
+from onboard.adf.odp import InfeasibleLegError, OdpLeg, OdpPlan
+from onboard.adf.odp_energy import MRSP_MARGIN_MPS, replan_from_state
+from onboard.adf.rd_controller import RemoteDrivingController
+from onboard.adf.supervisor import ModeRequest, SupervisoryController
+from onboard.plant.point_mass import GRAVITY_MPS2, PointMassParameters
+from protocol.messages import ScState
+from trackdb import TrackMap
+
+__all__ = ["DrivingFunction", "NoJourneyError"]
+
+STOP_TOLERANCE_M = 1.0
+STANDSTILL_MPS = 0.01
+EOA_STOP_MARGIN_M = 2.0
+"""The plan stops this far before the end of the ETCS authority it is given."""
+EOA_MOVED_M = 1.0
+
+
+class NoJourneyError(RuntimeError):
+    """Autonomous driving asked for with no journey planned."""
+
+
+class DrivingFunction:
+    """SC + RD PID + NMPC/ODP: from requests and limits to a force demand [N]."""
+
+    def __init__(
+        self,
+        track_map: TrackMap,
+        model: PointMassParameters,
+        *,
+        nmpc_config: NmpcConfig | None = None,
+    ) -> None:
+        self.track_map = track_map
+        self.model = model
+        self.sc = SupervisoryController()
+        self.rd = RemoteDrivingController(
+            mass_kg=model.mass_kg,
+            rolling_coefficient=model.davis_a_n / (model.mass_kg * GRAVITY_MPS2),
+        )
+        self.nmpc = NmpcController(model, nmpc_config)
+        self.control_s = self.nmpc.config.step_s
+        self.remote_target_mps: float | None = None
+        self.journey: JourneyPlan | None = None
+        self.autonomous: AutonomousDriving | None = None
+        self.fallback_active = False
+        self.permitted_speed_mps = math.inf
+        self._eoa_at_m: float | None = None
+        """The EoA in the plant's distance travelled [m]."""
+        self._origin_m = 0.0
+        self._origin_s = 0.0
+        self._last_force_n = 0.0
+        self._eoa_stop_m: float | None = None
+        """Where the current plan stops for the EoA (distance travelled), when it does."""
+        self.replans = 0
+
+    # -- requests ------------------------------------------------------------------------------
+
+    @property
+    def state(self) -> ScState:
+        return self.sc.state
+
+    def remote(
+        self, target_mps: float, now_s: float, *, speed_mps: float, gradient_permille: float
+    ) -> None:
+        """Remote driving at ``target_mps`` (taking over from AD without a step)."""
+        self.remote_target_mps = target_mps
+        if self.sc.state is ScState.OFF:
+            self.rd.reset(speed_mps)
+        elif self.sc.needs_autonomous:
+            self.rd.align(
+                self._last_force_n, speed_mps=speed_mps, gradient_permille=gradient_permille
+            )
+        self.sc.request(ModeRequest.REMOTE, now_s)
+
+    def start_journey(self, journey: JourneyPlan, now_s: float, *, position_m: float) -> None:
+        """Make ``journey`` the one to drive: its time and distance start here and now."""
+        self.journey = journey
+        self._origin_m, self._origin_s = position_m, now_s
+        self.autonomous = AutonomousDriving(journey.plan, self.model, self.nmpc)
+        self.fallback_active = False
+        self._eoa_stop_m = None
+        self.nmpc.reset()
+
+    def engage(self, now_s: float) -> None:
+        """Autonomous driving on the journey (hand-over from RD if remote driving). The journey
+        starts at standstill, as the ATO engagement conditions require (DOMAIN.md §2.1)."""
+        if self.autonomous is None:
+            raise NoJourneyError("no journey to drive")
+        self.nmpc.reset()
+        self.sc.request(ModeRequest.AUTONOMOUS, now_s)
+
+    def disengage(self, now_s: float) -> None:
+        """The SC goes OFF: the vehicle is held by the brake."""
+        self.sc.request(ModeRequest.OFF, now_s)
+        self.remote_target_mps = None
+
+    def set_etcs_limits(
+        self, permitted_speed_mps: float, eoa_ahead_m: float | None, *, position_m: float
+    ) -> None:
+        """The ETCS permitted speed [m/s], and the distance [m] to the EoA (if any) from
+        ``position_m``, the position ETCS measured it from."""
+        self.permitted_speed_mps = permitted_speed_mps
+        self._eoa_at_m = None if eoa_ahead_m is None else position_m + eoa_ahead_m
+
+    def stop_at_next_stopping_point(
+        self, now_s: float, *, position_m: float, speed_mps: float
+    ) -> None:
+        """Replan to stop at the next stop of the journey (the unattended fallback)."""
+        if self.journey is None:
+            raise NoJourneyError("no journey to stop on")
+        stop = self.next_stop(position_m)
+        if stop is None:
+            return
+        travelled = position_m - self._origin_m
+        cap = self.journey.plan.cap_mps or self.track_map.mrsp_mps(self.journey.start_chainage_m)
+        try:
+            plan = replan_from_state(
+                self.track_map, self.model, now_s=now_s - self._origin_s,
+                start_chainage_m=self.journey.start_chainage_m, distance_m=travelled,
+                speed_mps=speed_mps, stop_distance_m=stop.distance_m - travelled,
+                cruise_mps=max(cap, speed_mps),
+            )  # fmt: skip
+        except InfeasibleLegError:
+            return  # too close to stop on the plan: the current reference stops there anyway
+        self.autonomous = AutonomousDriving(plan, self.model, self.nmpc)
+        self.autonomous.set_permitted_speed(self.permitted_speed_mps)
+        self.fallback_active = True
+
+    # -- journey progress ----------------------------------------------------------------------
+
+    def next_stop(self, position_m: float) -> JourneyStop | None:
+        """The first stop of the journey not yet reached."""
+        if self.journey is None:
+            return None
+        travelled = position_m - self._origin_m
+        for stop in self.journey.stops:
+            if stop.distance_m > travelled + STOP_TOLERANCE_M:
+                return stop
+        return None
+
+    def stopped_at(self, position_m: float, speed_mps: float) -> JourneyStop | None:
+        """The stop of the journey the vehicle stands at, if any."""
+        if self.journey is None or speed_mps > STANDSTILL_MPS:
+            return None
+        travelled = position_m - self._origin_m
+        for stop in self.journey.stops:
+            if abs(stop.distance_m - travelled) <= STOP_TOLERANCE_M:
+                return stop
+        return None
+
+    def journey_time_s(self, now_s: float) -> float:
+        return now_s - self._origin_s
+
+    # -- replanning for the movement authority ------------------------------------------------
+
+    def _follow_authority(self, now_s: float, position_m: float, speed_mps: float) -> None:
+        """Replan when the EoA falls short of the next stop (stop before it), moves while the
+        plan stops for it, or comes to lie beyond the next stop again (back on the journey, on
+        time if the schedule still allows)."""
+        if self.journey is None or self.fallback_active:
+            return
+        stop = self.next_stop(position_m)
+        eoa = None if self._eoa_at_m is None else self._eoa_at_m - self._origin_m
+        travelled = position_m - self._origin_m
+        if stop is None:
+            return
+        if eoa is not None and eoa - EOA_STOP_MARGIN_M < stop.distance_m - STOP_TOLERANCE_M:
+            target = eoa - EOA_STOP_MARGIN_M
+            if self._eoa_stop_m is not None and abs(target - self._eoa_stop_m) < EOA_MOVED_M:
+                return
+            if target - travelled < STOP_TOLERANCE_M:
+                return  # at it already: the current plan holds the train
+            self._replan(now_s, travelled, speed_mps, target, arrival_s=None)
+            self._eoa_stop_m = target
+        elif self._eoa_stop_m is not None:
+            self._replan(now_s, travelled, speed_mps, stop.distance_m, arrival_s=stop.arrival_s)
+            self._eoa_stop_m = None
+
+    def _replan(
+        self, now_s: float, travelled_m: float, speed_mps: float, stop_m: float,
+        *, arrival_s: float | None,
+    ) -> None:  # fmt: skip
+        """A new current leg from the measured state; the journey's later legs kept when the
+        leg ends at the journey's next stop."""
+        assert self.journey is not None
+        plan = self.journey.plan
+        cap = plan.cap_mps or self.track_map.mrsp_mps(self.journey.start_chainage_m)
+        # Under the ETCS permitted speed by the plan's margin, as under the MRSP: a reference
+        # on the NMPC's ceiling makes the NLP degenerate.
+        cap = min(cap, self.permitted_speed_mps - MRSP_MARGIN_MPS)
+        journey_s = now_s - self._origin_s
+        try:
+            replanned = replan_from_state(
+                self.track_map, self.model, now_s=journey_s,
+                start_chainage_m=self.journey.start_chainage_m, distance_m=travelled_m,
+                speed_mps=speed_mps, stop_distance_m=stop_m - travelled_m,
+                cruise_mps=max(cap, speed_mps), arrival_s=arrival_s,
+            )  # fmt: skip
+        except InfeasibleLegError:
+            return  # too close to change: the ceilings and ETCS still hold the train back
+        legs = list(replanned.legs)
+        if arrival_s is not None:
+            legs += [leg for leg in plan.legs if leg.start_distance_m >= stop_m - STOP_TOLERANCE_M]
+        self.autonomous = AutonomousDriving(
+            OdpPlan(
+                [OdpLeg(leg.start_s, leg.start_distance_m, leg.segment) for leg in legs],
+                start_chainage_m=plan.start_chainage_m, track_map=self.track_map,
+                cap_mps=plan.cap_mps,
+            ),
+            self.model, self.nmpc,
+        )  # fmt: skip
+        self.replans += 1
+
+    # -- control -------------------------------------------------------------------------------
+
+    def step(
+        self,
+        now_s: float,
+        *,
+        position_m: float,
+        speed_mps: float,
+        applied_force_n: float,
+        gradient_permille: float,
+        force_limits_n: tuple[float, float],
+        traction_allowed: bool = True,
+        service_brake: bool = False,
+    ) -> float:
+        """The force demand [N] for the next control step."""
+        u_rd = 0.0
+        if self.sc.needs_remote:
+            target = min(self.remote_target_mps or 0.0, self.permitted_speed_mps,
+                         self.track_map.mrsp_mps(self.track_map.normalise(position_m)))  # fmt: skip
+            u_rd = self.rd.step(
+                self.control_s, target_speed_mps=max(target, 0.0), speed_mps=speed_mps,
+                gradient_permille=gradient_permille, force_limits_n=force_limits_n,
+            )  # fmt: skip
+        u_ad = 0.0
+        if self.sc.needs_autonomous:
+            self._follow_authority(now_s, position_m, speed_mps)
+        if self.sc.needs_autonomous and self.autonomous is not None:
+            self.autonomous.set_permitted_speed(self.permitted_speed_mps)
+            u_ad = self.autonomous.force_n(
+                now_s - self._origin_s, distance_m=position_m - self._origin_m,
+                speed_mps=speed_mps, applied_force_n=applied_force_n,
+            )  # fmt: skip
+        force = self.sc.step(self.control_s, now_s, remote_force_n=u_rd, autonomous_force_n=u_ad)
+        self.sc.acknowledge_replan()
+        low, high = force_limits_n
+        demand = low if force is None else min(max(force, low), high)
+        if not traction_allowed:
+            demand = min(demand, 0.0)
+        if service_brake:
+            demand = low
+        self._last_force_n = demand
+        return demand

@@ -1,0 +1,145 @@
+"""The ADF as the node runs it: RD, then a journey in AD, ETCS limits, the fallback stop."""
+
+from __future__ import annotations
+
+import pytest
+
+from onboard.adf.function import DrivingFunction, NoJourneyError
+from onboard.adf.journey import plan_journey
+from onboard.adf.odp import InfeasibleLegError
+from onboard.plant import URV_PARAMETERS, PointMassModel
+from onboard.plant.point_mass import with_model_mismatch
+from protocol import messages as m
+from protocol.messages import ScState
+from trackdb import TrackMap, load_seed_line
+
+CONTROL_S, PLANT_S = 0.2, 0.01
+
+
+def field_journey(version: int = 1) -> m.JourneyProfile:
+    """Seed 000's field test from 200 m: east (1975 m), south (3400 m), north (550 m)."""
+    points = (
+        m.TimingPoint(id="east", position_m=1975.0, kind=m.TimingPointKind.STOPPING,
+                      arrival_time_s=300.0, departure_time_s=320.0),
+        m.TimingPoint(id="south", position_m=3400.0, kind=m.TimingPointKind.STOPPING,
+                      arrival_time_s=550.0, departure_time_s=570.0),
+        m.TimingPoint(id="north", position_m=550.0, kind=m.TimingPointKind.STOPPING,
+                      arrival_time_s=1000.0, end_of_journey=True),
+    )  # fmt: skip
+    return m.JourneyProfile(
+        vehicle_id="URV1", journey_id="field-test", version=version,
+        status=m.JourneyProfileStatus.VALID, line_id="bologna-ring", track_data_version="x",
+        max_speed_mps=40 / 3.6, timing_points=points,
+    )  # fmt: skip
+
+
+class Loop:
+    """The function on a mismatched point-mass plant, in lockstep."""
+
+    def __init__(self, ring: TrackMap, start_m: float = 0.0) -> None:
+        self.ring = ring
+        self.adf = DrivingFunction(ring, URV_PARAMETERS)
+        self.plant = PointMassModel(with_model_mismatch(URV_PARAMETERS), position_m=start_m)
+        self.now = 0.0
+
+    def gradient(self) -> float:
+        return self.ring.gradient_permille(self.ring.normalise(self.plant.position_m))
+
+    def run(self, seconds: float, **flags: bool) -> None:
+        for _ in range(round(seconds / CONTROL_S)):
+            force = self.adf.step(
+                self.now, position_m=self.plant.position_m, speed_mps=self.plant.speed_mps,
+                applied_force_n=self.plant.applied_force_n, gradient_permille=self.gradient(),
+                force_limits_n=self.plant.force_limits_n(self.plant.speed_mps), **flags,
+            )  # fmt: skip
+            for _ in range(round(CONTROL_S / PLANT_S)):
+                chainage = self.ring.normalise(self.plant.position_m)
+                self.plant.step(
+                    PLANT_S, force, gradient_permille=self.ring.gradient_permille(chainage),
+                    curve_radius_m=self.ring.curve_radius_m(chainage),
+                )  # fmt: skip
+            self.now += CONTROL_S
+
+
+@pytest.fixture(scope="module")
+def ring() -> TrackMap:
+    return TrackMap(load_seed_line("bologna-ring"))
+
+
+def test_remote_driving_then_the_first_leg_of_the_journey_in_ad(ring: TrackMap) -> None:
+    loop = Loop(ring)
+    with pytest.raises(NoJourneyError):
+        loop.adf.engage(0.0)
+    loop.adf.remote(30 / 3.6, 0.0, speed_mps=0.0, gradient_permille=loop.gradient())
+    loop.run(40.0)
+    assert loop.plant.speed_mps == pytest.approx(30 / 3.6, abs=0.3)
+    loop.adf.remote(0.0, loop.now, speed_mps=loop.plant.speed_mps, gradient_permille=0.0)
+    loop.run(25.0)
+    assert loop.plant.speed_mps == 0.0
+    start = ring.normalise(loop.plant.position_m)
+    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=start)
+    assert [s.timing_point_id for s in journey.stops] == ["east", "south", "north"]
+    assert journey.stops[-1].end_of_journey and journey.legs_kept_plain == 0
+    loop.adf.start_journey(journey, loop.now, position_m=loop.plant.position_m)
+    loop.adf.engage(loop.now)
+    loop.run(2.2)
+    assert loop.adf.state is ScState.AD  # after the 2 s hand-over
+    started = loop.now
+    loop.run(305.0)
+    stop = loop.adf.stopped_at(loop.plant.position_m, loop.plant.speed_mps)
+    assert stop is not None and stop.timing_point_id == "east"
+    assert abs(ring.normalise(loop.plant.position_m) - 1975.0) <= 0.5
+    assert loop.now - started > 300.0
+    assert loop.adf.next_stop(loop.plant.position_m).timing_point_id == "south"  # type: ignore[union-attr]
+
+
+def test_the_etcs_end_of_authority_stops_the_train_short_of_it(ring: TrackMap) -> None:
+    loop = Loop(ring, start_m=200.0)
+    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
+    loop.adf.start_journey(journey, 0.0, position_m=200.0)
+    loop.adf.engage(0.0)
+    for _ in range(60):
+        # ETCS permits the line speed up to the EoA at chainage 800, before the first stop;
+        # its distance ahead shrinks as the train runs.
+        loop.adf.set_etcs_limits(
+            60 / 3.6, 800.0 - loop.plant.position_m, position_m=loop.plant.position_m
+        )
+        loop.run(2.0)
+    assert loop.plant.speed_mps == 0.0
+    assert 795.0 <= loop.plant.position_m <= 800.0  # the ceilings end 2 m before it
+
+
+def test_trackside_loss_replans_to_the_next_stopping_point(ring: TrackMap) -> None:
+    loop = Loop(ring, start_m=200.0)
+    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
+    loop.adf.start_journey(journey, 0.0, position_m=200.0)
+    loop.adf.engage(0.0)
+    loop.run(100.0)
+    loop.adf.stop_at_next_stopping_point(
+        loop.now, position_m=loop.plant.position_m, speed_mps=loop.plant.speed_mps
+    )
+    assert loop.adf.fallback_active
+    loop.run(300.0)
+    assert loop.plant.speed_mps == 0.0
+    assert abs(loop.plant.position_m - 1975.0) <= 0.5
+
+
+def test_traction_cut_and_service_brake_from_the_ato_ob_win(ring: TrackMap) -> None:
+    loop = Loop(ring)
+    loop.adf.remote(30 / 3.6, 0.0, speed_mps=0.0, gradient_permille=0.0)
+    loop.run(10.0, traction_allowed=False)
+    assert loop.plant.applied_force_n <= 0.0 and loop.plant.speed_mps < 0.5  # may roll, no more
+    loop.run(10.0)
+    assert loop.plant.speed_mps > 2.0
+    loop.run(15.0, service_brake=True)
+    assert loop.plant.speed_mps == 0.0
+
+
+def test_a_journey_with_an_unreachable_schedule_is_refused(ring: TrackMap) -> None:
+    profile = field_journey()
+    rushed = profile.model_copy(
+        update={"timing_points": (profile.timing_points[0].model_copy(
+            update={"arrival_time_s": 60.0, "departure_time_s": None, "end_of_journey": True}),)}
+    )  # fmt: skip
+    with pytest.raises(InfeasibleLegError, match="field-test"):
+        plan_journey(ring, URV_PARAMETERS, rushed, start_chainage_m=200.0)

@@ -1,0 +1,170 @@
+"""The RBC emulator: read, issue, extend, shorten and revoke a vehicle's movement authority (MA).
+
+Reading is for every role; changes are for admins and are audited on the ``trackside.audit``
+logger. A refused change sends nothing and changes nothing.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Depends, HTTPException, Path, Request, status
+from pydantic import BaseModel, Field
+
+from protocol import TransportError
+from protocol import messages as m
+from trackside.api.deps import AdminUser, ObserverUser
+from trackside.api.schemas import ProblemsPublic
+from trackside.errors import (
+    EndOfAuthorityBehindVehicleError,
+    MovementAuthorityRefusedError,
+    NoMovementAuthorityError,
+)
+from trackside.models import User
+from trackside.rbc import MovementAuthorityIssue, RbcEmulator
+
+router = APIRouter(prefix="/rbc", tags=["rbc"])
+
+_audit = logging.getLogger("trackside.audit")
+
+VehiclePath = Annotated[
+    str, Path(pattern=r"^[A-Za-z0-9_-]{1,32}$", description="Vehicle id", examples=["URV1"])
+]
+
+
+def get_rbc(request: Request) -> RbcEmulator:
+    rbc: RbcEmulator = request.app.state.rbc
+    return rbc
+
+
+RbcDep = Annotated[RbcEmulator, Depends(get_rbc)]
+
+
+class MovementAuthorityPublic(BaseModel):
+    """An MA message as sent to the vehicle, with its SvL and the vehicle's last acknowledgement."""
+
+    movement_authority: m.MovementAuthorityMessage
+    supervised_location_m: float | None = Field(
+        description="Chainage of the SvL [m]; null when revoked"
+    )
+    acknowledgement: m.MovementAuthorityAck | None = Field(
+        description="The vehicle's latest acknowledgement of any of its MAs"
+    )
+
+
+class RefusedPublic(BaseModel):
+    """The body of a refusal (409, 422)."""
+
+    detail: ProblemsPublic
+
+
+NOT_FOUND: dict[int | str, dict[str, Any]] = {
+    404: {"description": "The RBC holds no MA for the vehicle"}
+}
+REFUSED: dict[int | str, dict[str, Any]] = {
+    409: {"model": RefusedPublic, "description": "The EoA would lie at or behind the vehicle"},
+    422: {
+        "model": RefusedPublic,
+        "description": "Refused: a bad body or an MA the RBC cannot send",
+    },
+    503: {"description": "The MA could not be published; nothing changed"},
+}
+
+
+@contextmanager
+def _rbc_errors() -> Iterator[None]:
+    """Turn the RBC's domain errors into HTTP answers."""
+    try:
+        yield
+    except NoMovementAuthorityError as exc:
+        raise HTTPException(status_code=status.HTTP_404_NOT_FOUND, detail=str(exc)) from exc
+    except EndOfAuthorityBehindVehicleError as exc:
+        detail = {"message": str(exc), "problems": [str(exc)]}
+        raise HTTPException(status_code=status.HTTP_409_CONFLICT, detail=detail) from exc
+    except MovementAuthorityRefusedError as exc:
+        detail = {"message": str(exc), "problems": [str(exc)]}
+        raise HTTPException(status_code=422, detail=detail) from exc
+    except TransportError as exc:
+        raise HTTPException(
+            status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
+            detail=f"the MA could not be published, nothing changed: {exc}",
+        ) from exc
+
+
+def _public(rbc: RbcEmulator, message: m.MovementAuthorityMessage) -> MovementAuthorityPublic:
+    authority = message.authority
+    return MovementAuthorityPublic(
+        movement_authority=message,
+        supervised_location_m=None if authority is None else authority.supervised_location_m,
+        acknowledgement=rbc.acknowledgement(message.vehicle_id),
+    )
+
+
+def _audited(user: User, message: m.MovementAuthorityMessage) -> None:
+    authority = message.authority
+    _audit.info(
+        "user=%s action=rbc.%s vehicle=%s ma_id=%d eoa_m=%s",
+        user.username, message.change.value, message.vehicle_id, message.ma_id,
+        "none" if authority is None else f"{authority.end_of_authority_m:g}",
+    )  # fmt: skip
+
+
+@router.get("/{vehicle_id}/ma", responses=NOT_FOUND)
+def read_movement_authority(
+    vehicle_id: VehiclePath, rbc: RbcDep, _user: ObserverUser
+) -> MovementAuthorityPublic:
+    """The vehicle's MA in force, as the RBC last sent it."""
+    current = rbc.current(vehicle_id)
+    if current is None:
+        raise HTTPException(
+            status_code=status.HTTP_404_NOT_FOUND,
+            detail=f"the RBC holds no movement authority for {vehicle_id}",
+        )
+    return _public(rbc, current)
+
+
+@router.post("/{vehicle_id}/ma", status_code=status.HTTP_201_CREATED, responses=REFUSED)
+def issue_movement_authority(
+    vehicle_id: VehiclePath, body: MovementAuthorityIssue, rbc: RbcDep, user: AdminUser
+) -> MovementAuthorityPublic:
+    """Issue a new MA to the vehicle (admin only), replacing any it holds."""
+    with _rbc_errors():
+        message = rbc.issue(vehicle_id, body)
+    _audited(user, message)
+    return _public(rbc, message)
+
+
+@router.post("/{vehicle_id}/ma/extend", responses={**NOT_FOUND, **REFUSED})
+def extend_movement_authority(
+    vehicle_id: VehiclePath, body: m.MovementAuthorityEnd, rbc: RbcDep, user: AdminUser
+) -> MovementAuthorityPublic:
+    """Move the EoA forward, with the new end's danger point, overlap and release speed."""
+    with _rbc_errors():
+        message = rbc.extend(vehicle_id, body)
+    _audited(user, message)
+    return _public(rbc, message)
+
+
+@router.post("/{vehicle_id}/ma/shorten", responses={**NOT_FOUND, **REFUSED})
+def shorten_movement_authority(
+    vehicle_id: VehiclePath, body: m.MovementAuthorityEnd, rbc: RbcDep, user: AdminUser
+) -> MovementAuthorityPublic:
+    """Move the EoA back; refused (409) if it would fall at or behind the vehicle's front end."""
+    with _rbc_errors():
+        message = rbc.shorten(vehicle_id, body)
+    _audited(user, message)
+    return _public(rbc, message)
+
+
+@router.delete("/{vehicle_id}/ma", responses={**NOT_FOUND, **REFUSED})
+def revoke_movement_authority(
+    vehicle_id: VehiclePath, rbc: RbcDep, user: AdminUser
+) -> MovementAuthorityPublic:
+    """Revoke the vehicle's MA (admin only); the onboard applies it as an emergency stop."""
+    with _rbc_errors():
+        message = rbc.revoke(vehicle_id)
+    _audited(user, message)
+    return _public(rbc, message)
