@@ -1,13 +1,16 @@
 """The ATO-OB process of one vehicle: its Zenoh seams and its table of tasks.
 
-The node declares the vehicle's liveliness token, answers trackside commands, publishes status at
-5 Hz and events as they happen, and runs the plant and the remote-driving controller on the
-executive. Commands are validated and acknowledged on arrival, then executed at the next release
-of the ``commands`` task, so that what they change happens at a tick of simulated time.
+The node declares the vehicle's liveliness token, holds the session with the trackside
+(``onboard.session``), answers trackside commands, takes journey profiles and RBC movement
+authorities, publishes status and events, and runs the onboard stack (``onboard.stack``: ETCS,
+ATO-OB controller, ADF) and the plant on the executive. Commands are validated and acknowledged
+on arrival, then executed at the next release of the ``commands`` task, so that what they change
+happens at a tick of simulated time.
 
-Until the ETCS, localisation and ATO-OB controller issues land, the node reports ETCS in Staff
-Responsible (SR: the seed 000 field test starts remote driving in SR), the ATO-OB Not Available
-(NA: no journey profile) and reads speed and position from the plant.
+In lockstep (a :class:`SimClock`) two exchanges are made synchronous so that a run does not
+depend on how fast the wire is: the handshake waits for its answer, and each status report sent
+in an open session waits (up to ``BARRIER_S`` of wall time) for its acknowledgement before the
+clock moves on, the per-link barrier of ARCHITECTURE.md. In real time both are asynchronous.
 """
 
 from __future__ import annotations
@@ -16,15 +19,16 @@ import logging
 import threading
 from collections import deque
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import Literal
 
 import zenoh
 
-from onboard.adf import RemoteDrivingController
+from onboard.etcs import EtcsError
 from onboard.plant import URV_PARAMETERS, PointMassModel
-from onboard.runtime import Clock, Executive
+from onboard.runtime import Clock, Executive, SimClock
 from onboard.runtime.clock import NS_PER_S
-from onboard.track_database_manager import TrackDatabaseManager
+from onboard.session import SessionClient
+from onboard.stack import OnboardStack, Plant
 from onboard.vcu.vehicle import BogieVehicle
 from protocol import (
     ProtocolError,
@@ -32,6 +36,7 @@ from protocol import (
     TypedQueryable,
     TypedSubscriber,
     declare_liveliness,
+    request,
     request_async,
 )
 from protocol import messages as m
@@ -42,7 +47,11 @@ from protocol.registry import (
     JOURNEY_PROFILE,
     JOURNEY_PROFILE_ACK,
     LINE_VERSION,
+    MOVEMENT_AUTHORITY,
+    SESSION,
+    SESSION_TERMINATION,
     STATUS,
+    STATUS_ACK,
 )
 from trackdb import TrackMap
 
@@ -50,31 +59,9 @@ __all__ = ["Fidelity", "OnboardNode", "OnboardSettings", "Plant", "TASK_TABLE"]
 
 _log = logging.getLogger(__name__)
 
-
 Fidelity = Literal["point_mass", "bogie"]
-
-
-class Plant(Protocol):
-    """What the node needs of a plant; both fidelities provide it."""
-
-    @property
-    def position_m(self) -> float: ...
-
-    @property
-    def speed_mps(self) -> float: ...
-
-    @property
-    def acceleration_mps2(self) -> float: ...
-
-    @property
-    def applied_force_n(self) -> float: ...
-
-    def force_limits_n(self, speed_mps: float) -> tuple[float, float]: ...
-
-    def step(
-        self, dt_s: float, force_demand_n: float, *, gradient_permille: float = ...,
-        curve_radius_m: float = ...,
-    ) -> None: ...  # fmt: skip
+BARRIER_S = 1.0
+"""Lockstep: the longest wall time a status report waits for its acknowledgement."""
 
 
 @dataclass(frozen=True)
@@ -86,7 +73,9 @@ class TaskSpec:
 TASK_TABLE: dict[str, TaskSpec] = {
     "commands": TaskSpec(period_s=0.05, priority=40),
     "plant": TaskSpec(period_s=0.01, priority=30),
-    "rd_control": TaskSpec(period_s=0.1, priority=20),
+    "etcs": TaskSpec(period_s=0.1, priority=25),
+    "control": TaskSpec(period_s=0.2, priority=20),
+    "session": TaskSpec(period_s=0.1, priority=15),
     "status": TaskSpec(period_s=0.2, priority=10),
     "track_data": TaskSpec(period_s=5.0, priority=5),
 }
@@ -100,6 +89,10 @@ class OnboardSettings:
     start_position_m: float = 0.0
     fidelity: Fidelity = "point_mass"
     """The plant: the point-mass model, or the 10-DOF bogie model behind the VCU."""
+    etcs_id: int = 1
+    train_length_m: float = 6.0
+    energy_plans: bool = True
+    """Plan journeys energy-minimised (else the plain LSPB)."""
 
 
 class OnboardNode:
@@ -116,24 +109,27 @@ class OnboardNode:
         self.settings = settings
         self.vehicle_id = settings.vehicle_id
         self.track_map = track_map
-        self.track_database = TrackDatabaseManager(track_map)
         self._session = session
         self.clock = clock
+        self.lockstep = isinstance(clock, SimClock)
         self.executive = Executive(clock)
         self.plant: Plant = (
             BogieVehicle(position_m=settings.start_position_m)
             if settings.fidelity == "bogie"
             else PointMassModel(URV_PARAMETERS, position_m=settings.start_position_m)
         )
-        self.rd_controller = RemoteDrivingController(
-            mass_kg=URV_PARAMETERS.mass_kg,
-            rolling_coefficient=URV_PARAMETERS.davis_a_n / (URV_PARAMETERS.mass_kg * 9.81),
-        )
-        self.sc_state = m.ScState.OFF
-        self.target_speed_mps: float | None = None
-        self._force_demand_n = 0.0
+        self.stack = OnboardStack(
+            track_map, self.plant, URV_PARAMETERS, start_s=clock.now_s,
+            energy_plans=settings.energy_plans,
+        )  # fmt: skip
+        self.track_database = self.stack.track_database
+        self.session_client = SessionClient(
+            vehicle_id=self.vehicle_id, etcs_id=settings.etcs_id,
+            train_length_m=settings.train_length_m,
+        )  # fmt: skip
         self._inbox: deque[m.Command] = deque()
         self._inbox_lock = threading.Lock()
+        self._session_replies: deque[m.SessionAccept | m.SessionReject | None] = deque()
         self._status_seq = 0
         self._event_seq = 0
         self.commands_rejected = 0
@@ -144,6 +140,17 @@ class OnboardNode:
         self._commands = TypedQueryable(session, COMMAND, self._on_command, **chunks)
         self._journeys = TypedSubscriber(session, JOURNEY_PROFILE, vehicle=self.vehicle_id)
         self._journey_acks = TypedPublisher(session, JOURNEY_PROFILE_ACK, **chunks)
+        self._status_acks = TypedSubscriber(session, STATUS_ACK, vehicle=self.vehicle_id)
+        self._status_acked = threading.Event()
+        self._status_acks_pushed = TypedSubscriber(
+            session,
+            STATUS_ACK,
+            on_message=lambda _k, _a: self._status_acked.set(),
+            vehicle=self.vehicle_id,
+        )
+        self._terminations = TypedSubscriber(session, SESSION_TERMINATION, vehicle=self.vehicle_id)
+        self._termination_out = TypedPublisher(session, SESSION_TERMINATION, **chunks)
+        self._authorities = TypedSubscriber(session, MOVEMENT_AUTHORITY, vehicle=self.vehicle_id)
         self._line_version: m.LineVersionReply | None = None
         self._token = declare_liveliness(session, ALIVE_ONBOARD.format(vehicle=self.vehicle_id))
 
@@ -153,6 +160,14 @@ class OnboardNode:
                 priority=spec.priority,
             )  # fmt: skip
         self.emit(m.EventSeverity.INFO, "onboard.started", f"line {track_map.line.id}")
+
+    @property
+    def sc_state(self) -> m.ScState:
+        return self.stack.driving.state
+
+    @property
+    def target_speed_mps(self) -> float | None:
+        return self.stack.remote_target_mps if self.stack.remote_selected else None
 
     # -- Zenoh side (called on Zenoh's threads) ------------------------------------------------
 
@@ -174,22 +189,17 @@ class OnboardNode:
     def _refusal(self, command: m.Command) -> str | None:
         if command.vehicle_id != self.vehicle_id:
             return f"command for {command.vehicle_id} reached {self.vehicle_id}"
-        body = command.body
-        if isinstance(body, m.EngageCommand):
-            return "ATO-OB not available: no journey profile accepted"
-        if isinstance(body, m.DisengageCommand):
-            return "ATO-OB is not engaged"
-        if isinstance(body, m.RemoteDrivingTargetCommand):
-            limit = self.track_map.speed_limit_mps(self.plant.position_m)
-            if body.target_speed_mps > limit:
-                return f"target {body.target_speed_mps:.2f} m/s above line speed {limit:.2f} m/s"
-        return None
-
-    # -- tasks (called by the executive) -------------------------------------------------------
+        return self.stack.refusal(command.body)
 
     def _on_line_version(self, reply: m.LineVersionReply) -> None:
         with self._inbox_lock:
             self._line_version = reply
+
+    def _on_session_reply(self, reply: m.SessionAccept | m.SessionReject) -> None:
+        with self._inbox_lock:
+            self._session_replies.append(reply)
+
+    # -- tasks (called by the executive) -------------------------------------------------------
 
     def _task_track_data(self, now_ns: int) -> None:
         """Ask the trackside which version of the line it holds (answered asynchronously)."""
@@ -207,85 +217,165 @@ class OnboardNode:
             reply, self._line_version = self._line_version, None
         if reply is None:
             return
-        matched_before = self.track_database.versions_match
-        self.track_database.record_trackside_version(reply)
-        if self.track_database.versions_match != matched_before or reply.version is None:
-            code = "track_data.match" if self.track_database.versions_match else "track_data.differ"
-            severity = (
-                m.EventSeverity.INFO if code == "track_data.match" else m.EventSeverity.WARNING
-            )
-            onboard = self.track_database.onboard_version
-            text = f"trackside {reply.version or 'unknown'} onboard {onboard}"
+        database = self.track_database
+        matched_before = database.versions_match
+        database.record_trackside_version(reply)
+        if database.versions_match != matched_before or reply.version is None:
+            code = "track_data.match" if database.versions_match else "track_data.differ"
+            severity = m.EventSeverity.INFO if database.versions_match else m.EventSeverity.WARNING
+            text = f"trackside {reply.version or 'unknown'} onboard {database.onboard_version}"
             self.emit(severity, code, text, now_ns=now_ns)
 
     def _take_journeys(self, now_ns: int) -> None:
+        now_s = now_ns / NS_PER_S
         while (received := self._journeys.try_recv()) is not None:
             _, profile = received
-            if profile.vehicle_id != self.vehicle_id:
-                review_reason: str | None = f"journey for {profile.vehicle_id}"
-                accepted = False
-            else:
-                review = self.track_database.review(profile)
-                accepted, review_reason = review.accepted, review.reason
+            if not self.session_client.on_journey_profile(profile, now_s):
+                self.emit(m.EventSeverity.WARNING, "journey.stale",
+                          f"journey {profile.journey_id} v{profile.version} dropped",
+                          now_ns=now_ns)  # fmt: skip
+                continue
+            accepted, reason = self.stack.review_journey(profile)
             self._journey_acks.put(
                 m.JourneyProfileAck(
                     vehicle_id=self.vehicle_id, journey_id=profile.journey_id,
-                    version=profile.version, accepted=accepted, reason=review_reason,
+                    version=profile.version, accepted=accepted, reason=reason,
                 )
             )  # fmt: skip
-            verdict = "accepted" if accepted else f"refused: {review_reason}"
+            verdict = "accepted" if accepted else f"refused: {reason}"
             self.emit(
                 m.EventSeverity.INFO if accepted else m.EventSeverity.WARNING,
                 "journey.accepted" if accepted else "journey.refused",
                 f"journey {profile.journey_id} v{profile.version} {verdict}", now_ns=now_ns,
             )  # fmt: skip
 
+    def _take_authorities(self, now_ns: int) -> None:
+        while (received := self._authorities.try_recv()) is not None:
+            _, message = received
+            if message.vehicle_id != self.vehicle_id:
+                continue
+            try:
+                what = self.stack.receive_movement_authority(message, now_ns / NS_PER_S)
+            except EtcsError as exc:
+                self.emit(m.EventSeverity.WARNING, "etcs.ma_refused", str(exc), now_ns=now_ns)
+                continue
+            self.emit(m.EventSeverity.INFO, "etcs.ma", f"MA {message.ma_id} {what}",
+                      now_ns=now_ns)  # fmt: skip
+
     def _task_commands(self, now_ns: int) -> None:
+        now_s = now_ns / NS_PER_S
         self._take_line_version(now_ns)
         self._take_journeys(now_ns)
+        self._take_authorities(now_ns)
         while True:
             with self._inbox_lock:
                 if not self._inbox:
-                    return
+                    break
                 command = self._inbox.popleft()
-            body = command.body
-            if isinstance(body, m.RemoteDrivingTargetCommand):
-                if self.sc_state is m.ScState.OFF:
-                    self.rd_controller.reset(self.plant.speed_mps)
-                    self.sc_state = m.ScState.RD
-                self.target_speed_mps = body.target_speed_mps
+            self._execute(command, now_s, now_ns)
+        for event in self.stack.events:
+            self.emit(event.severity, event.code, event.text, now_ns=now_ns)
+        self.stack.events.clear()
+
+    def _execute(self, command: m.Command, now_s: float, now_ns: int) -> None:
+        body = command.body
+        refused: str | None = None
+        if isinstance(body, m.RemoteDrivingTargetCommand):
+            refused = self.stack.refusal(body)
+            if refused is None:
+                self.stack.remote(body.target_speed_mps, now_s)
                 self.emit(
                     m.EventSeverity.INFO, "rd.target_speed",
                     f"target {body.target_speed_mps * 3.6:.1f} km/h by {command.issued_by}",
                     now_ns=now_ns,
                 )  # fmt: skip
+        elif isinstance(body, m.EngageCommand):
+            refused = self.stack.engage(now_s)
+            if refused is None:
+                self.emit(m.EventSeverity.INFO, "ato.engaged", f"by {command.issued_by}",
+                          now_ns=now_ns)  # fmt: skip
+        elif isinstance(body, m.DisengageCommand):
+            refused = self.stack.disengage(now_s)
+            if refused is None:
+                self.emit(m.EventSeverity.INFO, "ato.disengaged", f"by {command.issued_by}",
+                          now_ns=now_ns)  # fmt: skip
+        if refused is not None:
+            self.emit(m.EventSeverity.WARNING, "command.refused",
+                      f"command {command.command_id}: {refused}", now_ns=now_ns)  # fmt: skip
 
     def _task_plant(self, _now_ns: int) -> None:
         position = self.plant.position_m
         self.plant.step(
             TASK_TABLE["plant"].period_s,
-            self._force_demand_n,
+            self.stack.force_demand_n,
             gradient_permille=self.track_map.gradient_permille(position),
             curve_radius_m=self.track_map.curve_radius_m(position),
         )
 
-    def _task_rd_control(self, _now_ns: int) -> None:
-        if self.sc_state is not m.ScState.RD or self.target_speed_mps is None:
-            self._force_demand_n = self.plant.force_limits_n(self.plant.speed_mps)[0]
+    def _task_etcs(self, now_ns: int) -> None:
+        self.stack.step_etcs(now_ns / NS_PER_S)
+
+    def _task_control(self, now_ns: int) -> None:
+        self.stack.session_alive = self.session_client.established
+        self.stack.step_control(now_ns / NS_PER_S)
+
+    def _task_session(self, now_ns: int) -> None:
+        """Handshake when due, take acknowledgements and terminations, check the timeouts."""
+        now_s = now_ns / NS_PER_S
+        client = self.session_client
+        while (ack := self._status_acks.try_recv()) is not None:
+            client.on_status_ack(ack[1].vehicle_id, ack[1].seq, now_s)
+        while (received := self._terminations.try_recv()) is not None:
+            if client.on_termination(received[1], now_s):
+                self.emit(m.EventSeverity.WARNING, "session.terminated", received[1].reason,
+                          now_ns=now_ns)  # fmt: skip
+        with self._inbox_lock:
+            replies = list(self._session_replies)
+            self._session_replies.clear()
+        for reply in replies:
+            self._take_session_reply(reply, now_ns)
+        if client.step(now_s):
+            text = f"no acknowledgement within {client.response_timeout_s} s"
+            self.emit(m.EventSeverity.WARNING, "session.lost", text, now_ns=now_ns)
+        handshake = client.request(now_s, track_data_version=self.track_database.onboard_version)
+        if handshake is None:
             return
-        position = self.plant.position_m
-        target = min(self.target_speed_mps, self.track_map.speed_limit_mps(position))
-        self._force_demand_n = self.rd_controller.step(
-            TASK_TABLE["rd_control"].period_s,
-            target_speed_mps=target,
-            speed_mps=self.plant.speed_mps,
-            gradient_permille=self.track_map.gradient_permille(position),
-            force_limits_n=self.plant.force_limits_n(self.plant.speed_mps),
-        )
+        if self.lockstep:
+            try:
+                reply = request(self._session, SESSION, handshake, timeout_s=1.0,
+                                vehicle=self.vehicle_id)  # fmt: skip
+            except ProtocolError:
+                reply = None
+            self._take_session_reply(reply, now_ns)
+            return
+        try:
+            request_async(self._session, SESSION, handshake, self._on_session_reply,
+                          vehicle=self.vehicle_id)  # fmt: skip
+        except ProtocolError:
+            self._take_session_reply(None, now_ns)
+
+    def _take_session_reply(
+        self, reply: m.SessionAccept | m.SessionReject | None, now_ns: int
+    ) -> None:
+        client = self.session_client
+        client.on_response(reply, now_ns / NS_PER_S)
+        if client.established:
+            self.emit(m.EventSeverity.INFO, "session.established",
+                      f"with {client.trackside_id}", now_ns=now_ns)  # fmt: skip
+        elif isinstance(reply, m.SessionReject):
+            self.emit(m.EventSeverity.WARNING, "session.rejected", reply.reason.value,
+                      now_ns=now_ns)  # fmt: skip
 
     def _task_status(self, now_ns: int) -> None:
+        client = self.session_client
+        if not client.status_due(now_ns / NS_PER_S, self._status_seq):
+            return
+        waiting = self.lockstep and client.established
+        self._status_acked.clear()
         self._status.put(self.status(now_ns))
         self._status_seq += 1
+        if waiting and self._status_acked.wait(BARRIER_S):
+            self._task_session(now_ns)  # take the acknowledgement at this tick
 
     @property
     def reports_sent(self) -> int:
@@ -295,6 +385,8 @@ class OnboardNode:
     # -- state ---------------------------------------------------------------------------------
 
     def status(self, now_ns: int) -> m.StatusReport:
+        etcs = self.stack.etcs.output
+        journey = self.track_database.journey
         return m.StatusReport(
             vehicle_id=self.vehicle_id,
             seq=self._status_seq,
@@ -304,13 +396,12 @@ class OnboardNode:
             speed_mps=self.plant.speed_mps,
             acceleration_mps2=self.plant.acceleration_mps2,
             traction_force_n=self.plant.applied_force_n,
-            ato_state=m.AtoState.NOT_AVAILABLE,
-            etcs_mode=m.EtcsMode.SR,
+            ato_state=self.stack.ato_state,
+            etcs_mode=self.stack.etcs.mode,
             sc_state=self.sc_state,
+            supervision_status=etcs.supervision_status,
             target_speed_mps=self.target_speed_mps,
-            journey_id=None
-            if self.track_database.journey is None
-            else self.track_database.journey.journey_id,
+            journey_id=None if journey is None else journey.journey_id,
         )
 
     def emit(
@@ -340,8 +431,13 @@ class OnboardNode:
     def close(self) -> None:
         """Withdraw from the network: the token goes first, so trackside sees it at once."""
         self._token.undeclare()
+        termination = self.session_client.terminate("onboard closing", self.clock.now_s)
+        if termination is not None:
+            self._termination_out.put(termination)
         self._commands.close()
-        self._journeys.close()
-        self._journey_acks.close()
-        self._status.close()
-        self._events.close()
+        for closable in (
+            self._journeys, self._journey_acks, self._status_acks, self._status_acks_pushed,
+            self._terminations, self._termination_out, self._authorities, self._status,
+            self._events,
+        ):  # fmt: skip
+            closable.close()

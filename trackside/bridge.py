@@ -1,8 +1,14 @@
-"""The trackside's Zenoh side: which vehicles are alive, and their latest status.
+"""The trackside's Zenoh side: which vehicles are alive, their latest status, their sessions.
 
 A vehicle is alive while its liveliness token ``ato/alive/ob/{vehicle}`` exists; Zenoh withdraws
 the token when the onboard's session closes, or after the link lease (≤ 1 s) when the process
 freezes or its link breaks. Vehicles once seen stay listed, as not alive.
+
+The ATO-TS side of the session (``trackside.session``): handshakes are answered on
+``ato/ts/session/{vehicle}``, each status report of an open session is acknowledged (STRAck), a
+session ends with the vehicle's liveliness, with a termination from either side, or when no
+report came within the response timeout of the onboard's simulated time. Journey profiles go out
+with :meth:`ZenohBridge.send_journey_profile`, which waits for the onboard's acknowledgement.
 """
 
 from __future__ import annotations
@@ -11,12 +17,31 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import zenoh
 
-from protocol import LivelinessWatcher, TypedQueryable, TypedSubscriber, declare_liveliness
+from protocol import (
+    LivelinessWatcher,
+    TypedPublisher,
+    TypedQueryable,
+    TypedSubscriber,
+    declare_liveliness,
+)
 from protocol import messages as m
-from protocol.registry import ALIVE_ONBOARD, ALIVE_TRACKSIDE, LINE_VERSION, STATUS
+from protocol.registry import (
+    ALIVE_ONBOARD,
+    ALIVE_TRACKSIDE,
+    JOURNEY_PROFILE,
+    JOURNEY_PROFILE_ACK,
+    LINE_VERSION,
+    SESSION,
+    SESSION_TERMINATION,
+    STATUS,
+    STATUS_ACK,
+    Topic,
+)
+from trackside.session import SessionManager
 
 __all__ = ["VehicleSnapshot", "ZenohBridge"]
 
@@ -44,8 +69,15 @@ class ZenohBridge:
         instance_id: str,
         line_version: LineVersionLookup | None = None,
         clock: Callable[[], float] = time.monotonic,
+        sessions: SessionManager | None = None,
     ) -> None:
         self._clock = clock
+        self._zenoh = session
+        self.sessions = sessions or SessionManager(trackside_id=instance_id)
+        self._session_lock = threading.Lock()
+        self._publishers: dict[tuple[str, str], TypedPublisher[Any]] = {}
+        self._acks: dict[str, list[m.JourneyProfileAck]] = {}
+        self._acks_changed = threading.Condition()
         self._lock = threading.Lock()
         self._known: set[str] = set()
         self._alive: set[str] = set()
@@ -56,6 +88,13 @@ class ZenohBridge:
         )
         self._line_version = line_version
         self._line_versions = TypedQueryable(session, LINE_VERSION, self._answer_line_version)
+        self._handshakes = TypedQueryable(session, SESSION, self._answer_session)
+        self._terminations = TypedSubscriber(
+            session, SESSION_TERMINATION, on_message=self._on_termination, vehicle="*"
+        )
+        self._journey_acks = TypedSubscriber(
+            session, JOURNEY_PROFILE_ACK, on_message=self._on_journey_ack, vehicle="*"
+        )
         self._token = declare_liveliness(session, ALIVE_TRACKSIDE.format(instance=instance_id))
 
     def _answer_line_version(
@@ -98,8 +137,89 @@ class ZenohBridge:
         self._notify()
 
     def _on_status(self, key: str, report: m.StatusReport) -> None:
-        del key, report
+        if report.vehicle_id == STATUS.parse(key)["vehicle"]:
+            with self._session_lock:
+                ack = self.sessions.on_status(report, report.sim_time_s)
+                self.sessions.expire(report.sim_time_s)
+            if ack is not None:
+                self._publisher(STATUS_ACK, report.vehicle_id).put(ack)
         self._notify()
+
+    # -- session -------------------------------------------------------------------------------
+
+    def _publisher(self, topic: Topic[Any], vehicle_id: str) -> TypedPublisher[Any]:
+        """One publisher per topic and vehicle, declared at first use."""
+        with self._session_lock:
+            publisher = self._publishers.get((topic.name, vehicle_id))
+            if publisher is None:
+                publisher = TypedPublisher(self._zenoh, topic, vehicle=vehicle_id)
+                self._publishers[(topic.name, vehicle_id)] = publisher
+        return publisher
+
+    def _answer_session(
+        self, chunks: dict[str, str], request: m.SessionRequest
+    ) -> m.SessionAccept | m.SessionReject:
+        if request.vehicle_id != chunks["vehicle"]:
+            raise ValueError(f"handshake of {request.vehicle_id} on {chunks['vehicle']}'s key")
+        snapshot = self.snapshot(request.vehicle_id)
+        now = 0.0 if snapshot is None or snapshot.status is None else snapshot.status.sim_time_s
+        with self._session_lock:
+            answer = self.sessions.on_request(request, now)
+        self._notify()
+        return answer
+
+    def _on_termination(self, key: str, termination: m.SessionTermination) -> None:
+        if termination.vehicle_id == SESSION_TERMINATION.parse(key)["vehicle"]:
+            with self._session_lock:
+                self.sessions.on_termination(termination)
+            self._notify()
+
+    def session_open(self, vehicle_id: str) -> bool:
+        with self._session_lock:
+            return vehicle_id in self.sessions.sessions
+
+    def terminate_session(self, vehicle_id: str, reason: str) -> bool:
+        """End a vehicle's session from the trackside (SESSTermReq)."""
+        with self._session_lock:
+            termination = self.sessions.terminate(vehicle_id, reason)
+        if termination is None:
+            return False
+        self._publisher(SESSION_TERMINATION, vehicle_id).put(termination)
+        self._notify()
+        return True
+
+    # -- journey profiles ----------------------------------------------------------------------
+
+    def _on_journey_ack(self, key: str, ack: m.JourneyProfileAck) -> None:
+        if ack.vehicle_id != JOURNEY_PROFILE_ACK.parse(key)["vehicle"]:
+            return
+        with self._acks_changed:
+            self._acks.setdefault(ack.vehicle_id, []).append(ack)
+            self._acks_changed.notify_all()
+
+    def send_journey_profile(
+        self, profile: m.JourneyProfile, *, timeout_s: float = 5.0
+    ) -> m.JourneyProfileAck | None:
+        """Send a journey profile and wait for its acknowledgement (or rejection); ``None``
+        when none came within ``timeout_s`` of wall time."""
+        vehicle = profile.vehicle_id
+        with self._acks_changed:
+            self._acks.pop(vehicle, None)
+        self._publisher(JOURNEY_PROFILE, vehicle).put(profile)
+        deadline = time.monotonic() + timeout_s
+
+        def answered() -> m.JourneyProfileAck | None:
+            for ack in self._acks.get(vehicle, []):
+                if (ack.journey_id, ack.version) == (profile.journey_id, profile.version):
+                    return ack
+            return None
+
+        with self._acks_changed:
+            while (ack := answered()) is None:
+                left = deadline - time.monotonic()
+                if left <= 0 or not self._acks_changed.wait(left):
+                    return answered()
+            return ack
 
     def vehicle_ids(self) -> list[str]:
         with self._lock:
@@ -130,6 +250,11 @@ class ZenohBridge:
 
     def close(self) -> None:
         self._token.undeclare()
+        self._handshakes.close()
+        self._terminations.close()
+        self._journey_acks.close()
+        for publisher in self._publishers.values():
+            publisher.close()
         self._line_versions.close()
         self._liveliness.close()
         self._status.close()

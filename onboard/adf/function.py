@@ -41,7 +41,12 @@ STOP_TOLERANCE_M = 1.0
 STANDSTILL_MPS = 0.01
 EOA_STOP_MARGIN_M = 2.0
 """The plan stops this far before the end of the ETCS authority it is given."""
-EOA_MOVED_M = 1.0
+EOA_MOVED_M = 5.0
+"""A plan stopping for the EoA is redone when the EoA moves on by more than this (or closer)."""
+ODOMETRY_SHARE = 0.06
+"""The SvL seen from the max-safe front end comes closer by 5 % of the distance run (the
+odometry interval grows): the plan anticipates it, with a margin."""
+PASSED_M = 10.0
 
 
 class NoJourneyError(RuntimeError):
@@ -78,6 +83,8 @@ class DrivingFunction:
         self._origin_s = 0.0
         self._last_force_n = 0.0
         self._eoa_stop_m: float | None = None
+        self._served = 0
+        """How many stops of the journey have been served (stopped at, or passed)."""
         """Where the current plan stops for the EoA (distance travelled), when it does."""
         self.replans = 0
 
@@ -107,6 +114,7 @@ class DrivingFunction:
         self.autonomous = AutonomousDriving(journey.plan, self.model, self.nmpc)
         self.fallback_active = False
         self._eoa_stop_m = None
+        self._served = 0
         self.nmpc.reset()
 
     def engage(self, now_s: float) -> None:
@@ -157,14 +165,26 @@ class DrivingFunction:
     # -- journey progress ----------------------------------------------------------------------
 
     def next_stop(self, position_m: float) -> JourneyStop | None:
-        """The first stop of the journey not yet reached."""
+        """The first stop of the journey not yet served (stopped at, or passed)."""
         if self.journey is None:
             return None
+        self._update_served(position_m, speed_mps=math.inf)
+        stops = self.journey.stops
+        return stops[self._served] if self._served < len(stops) else None
+
+    def _update_served(self, position_m: float, speed_mps: float) -> None:
+        if self.journey is None:
+            return
         travelled = position_m - self._origin_m
-        for stop in self.journey.stops:
-            if stop.distance_m > travelled + STOP_TOLERANCE_M:
-                return stop
-        return None
+        stops = self.journey.stops
+        while self._served < len(stops):
+            stop = stops[self._served]
+            stopped = speed_mps <= STANDSTILL_MPS and abs(stop.distance_m - travelled) <= (
+                STOP_TOLERANCE_M
+            )
+            if not (stopped or travelled > stop.distance_m + PASSED_M):
+                return
+            self._served += 1
 
     def stopped_at(self, position_m: float, speed_mps: float) -> JourneyStop | None:
         """The stop of the journey the vehicle stands at, if any."""
@@ -193,8 +213,9 @@ class DrivingFunction:
         if stop is None:
             return
         if eoa is not None and eoa - EOA_STOP_MARGIN_M < stop.distance_m - STOP_TOLERANCE_M:
-            target = eoa - EOA_STOP_MARGIN_M
-            if self._eoa_stop_m is not None and abs(target - self._eoa_stop_m) < EOA_MOVED_M:
+            target = eoa - EOA_STOP_MARGIN_M - ODOMETRY_SHARE * max(eoa - travelled, 0.0)
+            known = self._eoa_stop_m
+            if known is not None and known - 0.5 <= target <= known + EOA_MOVED_M:
                 return
             if target - travelled < STOP_TOLERANCE_M:
                 return  # at it already: the current plan holds the train
@@ -254,6 +275,7 @@ class DrivingFunction:
         service_brake: bool = False,
     ) -> float:
         """The force demand [N] for the next control step."""
+        self._update_served(position_m, speed_mps)
         u_rd = 0.0
         if self.sc.needs_remote:
             target = min(self.remote_target_mps or 0.0, self.permitted_speed_mps,

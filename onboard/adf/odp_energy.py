@@ -74,6 +74,7 @@ CRAWL_MPS = 0.5
 """The coast never lets the train fall below this speed: traction holds it."""
 SPEED_TOLERANCE_MPS = 1e-3
 TIME_TOLERANCE_S = 1e-4
+ARRIVAL_TOLERANCE_S = 0.05
 MRSP_MARGIN_MPS = 0.2 / 3.6
 """The plan holds this far under the MRSP (not under the journey's cap), so that tracking
 errors of the controller under a model mismatch stay under the limit."""
@@ -187,18 +188,24 @@ class LegTrack:
 class _Profiles:
     """Profiles of one leg for (V, U), with the targets and the braking envelope cached per V."""
 
-    def __init__(self, track: LegTrack, initial_mps: float) -> None:
+    def __init__(self, track: LegTrack, initial_mps: float, *, brake_down: bool = False) -> None:
         self.track = track
         self.initial_mps = initial_mps
         self._envelopes: dict[float, tuple[FloatArray, FloatArray]] = {}
-        # A train faster than the holding speed coasts down to it rather than braking: the
-        # target follows its coasting curve from the initial speed (never rising).
+        # A train faster than the holding speed slows down to it by coasting (no traction, no
+        # loss to the brake), or, when the schedule asks for more time than coasting down can
+        # give, by braking at the planned rate: the target follows that curve from the initial
+        # speed, never rising.
         coast_down = np.zeros(track.steps + 1)
         v = coast_down[0] = initial_mps
         for i in range(track.steps):
             if v <= CRAWL_MPS:
                 break
-            v = math.sqrt(max(min(v * v, v * v + track.coast_delta_v2(i, v)), 0.0))
+            if brake_down:
+                change = -2.0 * track.braking_mps2 * track.step_m
+            else:
+                change = min(0.0, track.coast_delta_v2(i, v))
+            v = math.sqrt(max(v * v + change, 0.0))
             coast_down[i + 1] = v
         self._coast_down = coast_down
 
@@ -348,11 +355,14 @@ def build_profile(
     holding_speed_mps: float,
     braking_onset_mps: float | None = None,
     initial_speed_mps: float = 0.0,
+    brake_down: bool = False,
 ) -> ProfileLeg:
     """The profile for a holding speed V [m/s] and a braking onset speed U [m/s] (V, no
-    coasting, when omitted), from ``initial_speed_mps`` to a stop at the leg's end."""
+    coasting, when omitted), from ``initial_speed_mps`` to a stop at the leg's end; faster than
+    V at the start, the train coasts down to it (or brakes, with ``brake_down``)."""
     onset = holding_speed_mps if braking_onset_mps is None else braking_onset_mps
-    speeds = _Profiles(track, initial_speed_mps).speeds(holding_speed_mps, onset)
+    profiles = _Profiles(track, initial_speed_mps, brake_down=brake_down)
+    speeds = profiles.speeds(holding_speed_mps, onset)
     times, energies = _cumulative(track, speeds)
     return ProfileLeg(
         distances_m=track.distances_m, speeds_mps=speeds, times_s=times,
@@ -384,13 +394,30 @@ def optimise_leg(
         track_map, model, start_chainage_m=start_chainage_m, distance_m=distance_m,
         cap_mps=cap_mps, max_acceleration_mps2=max_acceleration_mps2, braking_mps2=braking_mps2,
     )  # fmt: skip
-    profiles = _Profiles(track, initial_speed_mps)
+    best: ProfileLeg | None = None
+    for brake_down in (False, True) if initial_speed_mps > CRAWL_MPS else (False,):
+        profiles = _Profiles(track, initial_speed_mps, brake_down=brake_down)
+        leg = _optimise(track, profiles, duration_s, initial_speed_mps, brake_down=brake_down)
+        on_time = abs(leg.duration_s - duration_s) <= ARRIVAL_TOLERANCE_S
+        if on_time and (best is None or leg.traction_energy_j < best.traction_energy_j):
+            best = leg
+    if best is None:
+        raise InfeasibleLegError(
+            f"{distance_m:.0f} m cannot take {duration_s:.1f} s from {initial_speed_mps:.2f} m/s"
+        )
+    return best
+
+
+def _optimise(
+    track: LegTrack, profiles: _Profiles, duration_s: float, initial_speed_mps: float,
+    *, brake_down: bool,
+) -> ProfileLeg:  # fmt: skip
     fastest = float(track.ceilings_mps.max())
     fastest_s = profiles.time_s(fastest, fastest)
     if fastest_s > duration_s + TIME_TOLERANCE_S:
         raise InfeasibleLegError(
-            f"{distance_m:.0f} m takes at least {fastest_s:.1f} s under the limits, more than "
-            f"the {duration_s:.1f} s scheduled"
+            f"{track.distance_m:.0f} m takes at least {fastest_s:.1f} s under the limits, more "
+            f"than the {duration_s:.1f} s scheduled"
         )
     # The slowest holding speed that arrives on time without coasting.
     slowest = CRAWL_MPS
@@ -398,15 +425,21 @@ def optimise_leg(
         slowest = float(
             brentq(lambda v: profiles.time_s(v, v) - duration_s, CRAWL_MPS, fastest, xtol=1e-6)
         )
+    # The fastest holding speed from which the longest coast still does not arrive early.
+    highest = fastest
+    if profiles.time_s(fastest, 0.0) < duration_s <= profiles.time_s(slowest, 0.0):
+        highest = float(
+            brentq(lambda v: profiles.time_s(v, 0.0) - duration_s, slowest, fastest, xtol=1e-6)
+        )
     result = minimize_scalar(
-        lambda v: profiles.energy_j(v, duration_s), bounds=(slowest, fastest), method="bounded",
+        lambda v: profiles.energy_j(v, duration_s), bounds=(slowest, highest), method="bounded",
         options={"xatol": 5e-3},
     )  # fmt: skip
     holding = min((float(result.x), slowest), key=lambda v: profiles.energy_j(v, duration_s))
     return build_profile(
         track, holding_speed_mps=holding,
         braking_onset_mps=profiles.onset_mps(holding, duration_s),
-        initial_speed_mps=initial_speed_mps,
+        initial_speed_mps=initial_speed_mps, brake_down=brake_down,
     )  # fmt: skip
 
 

@@ -106,7 +106,9 @@ def test_the_etcs_end_of_authority_stops_the_train_short_of_it(ring: TrackMap) -
         )
         loop.run(2.0)
     assert loop.plant.speed_mps == 0.0
-    assert 795.0 <= loop.plant.position_m <= 800.0  # the ceilings end 2 m before it
+    # Short of it by the 2 m margin, plus what is kept for the odometry interval, which grows by
+    # 5 % of the distance run (re-planned outwards in steps of at most 5 m as the EoA nears).
+    assert 785.0 <= loop.plant.position_m <= 798.0
 
 
 def test_trackside_loss_replans_to_the_next_stopping_point(ring: TrackMap) -> None:

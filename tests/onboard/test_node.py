@@ -53,7 +53,8 @@ def test_node_declares_liveliness_and_publishes_status(
         latest = status.latest("ato/ob/URV1/status")
         assert latest is not None
         assert latest.sim_time_s == pytest.approx(end_s)
-        assert latest.ato_state is m.AtoState.NOT_AVAILABLE
+        # No trackside answers the track-data version: the ATO-OB stays in Configuration.
+        assert latest.ato_state is m.AtoState.CONFIGURATION
         assert latest.speed_mps == 0.0
 
 

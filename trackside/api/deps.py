@@ -18,6 +18,7 @@ from trackside.services import users
 __all__ = [
     "AdminUser",
     "BridgeDep",
+    "DriverUser",
     "CurrentUser",
     "SessionDep",
     "ObserverUser",
@@ -80,4 +81,5 @@ def require(role: Role) -> Callable[[User], User]:
 
 
 ObserverUser = Annotated[User, Depends(require(Role.OBSERVER))]
+DriverUser = Annotated[User, Depends(require(Role.DRIVER))]
 AdminUser = Annotated[User, Depends(require(Role.ADMIN))]

@@ -4,18 +4,15 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, HTTPException, Query, status
+from fastapi import APIRouter, HTTPException, Query, status
 from pydantic import BaseModel
 
 from trackdb.journey import Journey, JourneyCheck
-from trackside.api.deps import ObserverUser, SessionDep, require
+from trackside.api.deps import DriverUser, ObserverUser, SessionDep
 from trackside.errors import ConflictError, NotFoundError
-from trackside.models import Role, User
 from trackside.services import journeys as service
 
 router = APIRouter(prefix="/journeys", tags=["journeys"])
-
-DriverUser = Annotated[User, Depends(require(Role.DRIVER))]
 
 
 class LegPublic(BaseModel):

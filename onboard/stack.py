@@ -1,0 +1,296 @@
+"""The onboard stack of one vehicle without its transports: ETCS, ATO-OB controller, ADF.
+
+The node (``onboard.node``) moves messages over Zenoh and runs the tasks; this class holds what
+they act on, so that the whole chain can be driven in lockstep without a network:
+
+- the emulated ETCS onboard supervises the plant's position and speed (every 100 ms);
+- the ATO-OB controller decides, from ETCS, the journey, the track data and the session, whether
+  ATO is available, ready or engaged, and what the ADF is asked to do (every 200 ms);
+- the ADF (:class:`onboard.adf.function.DrivingFunction`) turns that into a force demand, under
+  the ETCS permitted speed and EoA; ETCS's own brake commands act on the vehicle last.
+
+Remote driving is the operator driving through the ADF's RD controller: it is possible whenever
+ATO is not engaged (the ATO-OB's CO/NA/AV/RE), not only from NA, since on an unmanned vehicle the
+remote driver is the only way to move it before ATO is available (the seed 000 field sequence
+starts in SR under RD). A journey profile is accepted only if its ODP can be planned from where
+the vehicle stands: an infeasible leg is a rejection with its reason.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from onboard.adf.function import DrivingFunction
+from onboard.adf.journey import JourneyPlan, plan_journey
+from onboard.adf.odp import InfeasibleLegError
+from onboard.adf.supervisor import ModeRequest
+from onboard.ato_ob import AtoObController, AtoObInputs, EtcsStatus, RequestRefusedError
+from onboard.etcs import EtcsOnboard, MaSection, MovementAuthority
+from onboard.plant.point_mass import PointMassParameters
+from onboard.track_database_manager import TrackDatabaseManager
+from protocol import messages as m
+from trackdb import TrackMap
+
+__all__ = ["OnboardStack", "Plant", "StackEvent", "authority_from_extent"]
+
+STANDSTILL_MPS = 0.01
+MIN_AUTHORITY_M = 5.0
+"""An MA shorter than this ahead does not allow leaving a platform."""
+REPLAN_MOVED_M = 1.0
+"""A journey planned at acceptance is replanned at engagement if the vehicle moved more."""
+_ENGAGED = (m.AtoState.ENGAGED, m.AtoState.DISENGAGING)
+
+
+@dataclass(frozen=True)
+class StackEvent:
+    severity: m.EventSeverity
+    code: str
+    text: str
+
+
+def authority_from_extent(extent: m.MovementAuthorityExtent) -> MovementAuthority:
+    """The ETCS onboard's MA from the RBC's wire extent: distances from its start (packet 15)."""
+    return MovementAuthority(
+        reference_m=extent.start_m, end_of_authority_m=extent.length_m,
+        danger_point_m=extent.danger_point_m, overlap_m=extent.overlap_m,
+        overlap_timer_s=extent.overlap_timer_s, overlap_timer_start_m=extent.overlap_timer_start_m,
+        release_speed_mps=extent.release_speed_mps,
+        sections=tuple(
+            MaSection(length_m=s.length_m, timer_s=s.timer_s, timer_stop_m=s.timer_stop_m)
+            for s in extent.sections
+        ),
+    )  # fmt: skip
+
+
+class Plant(Protocol):
+    """What the onboard needs of a plant; both fidelities provide it."""
+
+    @property
+    def position_m(self) -> float: ...
+
+    @property
+    def speed_mps(self) -> float: ...
+
+    @property
+    def acceleration_mps2(self) -> float: ...
+
+    @property
+    def applied_force_n(self) -> float: ...
+
+    def force_limits_n(self, speed_mps: float) -> tuple[float, float]: ...
+
+    def step(
+        self, dt_s: float, force_demand_n: float, *, gradient_permille: float = ...,
+        curve_radius_m: float = ...,
+    ) -> None: ...  # fmt: skip
+
+
+@dataclass
+class OnboardStack:
+    """ETCS + ATO-OB controller + ADF for one vehicle."""
+
+    track_map: TrackMap
+    plant: Plant
+    model: PointMassParameters
+    start_s: float = 0.0
+    energy_plans: bool = True
+    session_alive: bool = False
+    events: list[StackEvent] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        self.track_database = TrackDatabaseManager(self.track_map)
+        self.etcs = EtcsOnboard(self.track_map, position_m=self.plant.position_m,
+                                start_s=self.start_s)  # fmt: skip
+        self.etcs.start_of_mission(self.start_s)
+        self.controller = AtoObController(start_s=self.start_s)
+        self.driving = DrivingFunction(self.track_map, self.model)
+        self.journey_plan: JourneyPlan | None = None
+        self._planned_at_m = 0.0
+        self._journey_started = False
+        self.remote_selected = False
+        self.remote_target_mps: float | None = None
+        self.force_demand_n = 0.0
+        self._ad_requested = False
+
+    # -- state ---------------------------------------------------------------------------------
+
+    @property
+    def ato_state(self) -> m.AtoState:
+        return self.controller.state
+
+    @property
+    def engaged(self) -> bool:
+        return self.controller.state in _ENGAGED
+
+    def _note(self, severity: m.EventSeverity, code: str, text: str) -> None:
+        self.events.append(StackEvent(severity, code, text))
+
+    # -- journey and MA --------------------------------------------------------------------------
+
+    def review_journey(self, profile: m.JourneyProfile) -> tuple[bool, str | None]:
+        """Accept a journey profile (reviewed against the track data, then planned from here)
+        or reject it with the reason."""
+        if self.engaged:
+            return False, "ATO engaged: disengage before changing the journey"
+        review = self.track_database.review(profile)
+        if not review.accepted:
+            return False, review.reason
+        chainage = self.track_map.normalise(self.plant.position_m)
+        try:
+            plan = plan_journey(self.track_map, self.model, profile, start_chainage_m=chainage,
+                                energy=self.energy_plans)  # fmt: skip
+        except InfeasibleLegError as exc:
+            self.track_database.journey = None
+            return False, f"infeasible: {exc}"
+        self.journey_plan, self._planned_at_m = plan, self.plant.position_m
+        self._journey_started = False
+        return True, None
+
+    def receive_movement_authority(self, message: m.MovementAuthorityMessage, now_s: float) -> str:
+        """Hand an RBC message to ETCS; what happened, for the event log."""
+        if message.authority is None:
+            self.etcs.emergency_stop(now_s)
+            return "revoked: emergency stop"
+        change = self.etcs.receive_movement_authority(
+            authority_from_extent(message.authority), now_s,
+            track_description_m=message.authority.track_description_m,
+        )  # fmt: skip
+        return change.value
+
+    # -- operator requests -----------------------------------------------------------------------
+
+    def refusal(self, body: m.CommandBody) -> str | None:
+        """Why a command cannot be obeyed now, if it cannot (checked on arrival)."""
+        state = self.controller.state
+        if isinstance(body, m.EngageCommand):
+            if self.journey_plan is None:
+                return "ATO-OB not available: no journey profile accepted"
+            if state is not m.AtoState.READY:
+                reasons = self.controller.output.unavailable_reasons + (
+                    self.controller.output.not_ready_reasons
+                )
+                failed = ", ".join(str(r) for r in reasons) or "conditions pending"
+                return f"ATO-OB is {state.value}, not ready ({failed})"
+        if isinstance(body, m.DisengageCommand) and state not in _ENGAGED:
+            return "ATO-OB is not engaged"
+        if isinstance(body, m.RemoteDrivingTargetCommand):
+            if state in _ENGAGED:
+                return "ATO engaged: disengage before remote driving"
+            limit = self.track_map.speed_limit_mps(self.plant.position_m)
+            if body.target_speed_mps > limit:
+                return f"target {body.target_speed_mps:.2f} m/s above line speed {limit:.2f} m/s"
+        return None
+
+    def remote(self, target_mps: float, now_s: float) -> None:
+        self.remote_selected = True
+        self.remote_target_mps = target_mps
+        self.driving.remote(
+            target_mps, now_s, speed_mps=self.plant.speed_mps,
+            gradient_permille=self.track_map.gradient_permille(self.plant.position_m),
+        )  # fmt: skip
+
+    def engage(self, now_s: float) -> str | None:
+        """The remote driver's "ATO Engage"; the refusal, if refused."""
+        try:
+            self.controller.engage(now_s)
+        except RequestRefusedError as exc:
+            return str(exc)
+        self.remote_selected = False
+        self._start_journey(now_s)
+        return None
+
+    def disengage(self, now_s: float) -> str | None:
+        try:
+            self.controller.disengage(now_s)
+        except RequestRefusedError as exc:
+            return str(exc)
+        return None
+
+    def _start_journey(self, now_s: float) -> None:
+        if (
+            self._journey_started
+            or self.journey_plan is None
+            or self.track_database.journey is None
+        ):
+            return
+        if abs(self.plant.position_m - self._planned_at_m) > REPLAN_MOVED_M:
+            self.journey_plan = plan_journey(
+                self.track_map, self.model, self.track_database.journey,
+                start_chainage_m=self.track_map.normalise(self.plant.position_m),
+                energy=self.energy_plans,
+            )  # fmt: skip
+        self.driving.start_journey(self.journey_plan, now_s, position_m=self.plant.position_m)
+        self._journey_started = True
+
+    # -- tasks -----------------------------------------------------------------------------------
+
+    def step_etcs(self, now_s: float) -> None:
+        self.etcs.step(now_s, self.plant.position_m, max(self.plant.speed_mps, 0.0),
+                       acceleration_mps2=self.plant.acceleration_mps2)  # fmt: skip
+
+    def _inputs(self, now_s: float) -> AtoObInputs:
+        position, speed = self.plant.position_m, self.plant.speed_mps
+        driving = self.driving
+        stopped_at = driving.stopped_at(position, speed) if self._journey_started else None
+        next_stop = driving.next_stop(position) if self._journey_started else None
+        if not self._journey_started and self.journey_plan is not None:
+            next_stop = self.journey_plan.stops[0]
+        output = self.etcs.output
+        ahead = output.end_of_authority_distance_m if output is not None else None
+        dwell = stopped_at is None or driving.journey_time_s(now_s) >= stopped_at.departure_s
+        return AtoObInputs(
+            etcs=None if output is None else EtcsStatus.from_output(output, received_s=now_s),
+            journey_profile_valid=self.journey_plan is not None,
+            journey_profile_accepted=self.journey_plan is not None,
+            track_data_version_matches=self.track_database.versions_match,
+            localisation_valid=True,
+            end_of_journey_reached=stopped_at is not None and stopped_at.end_of_journey,
+            standstill=speed < STANDSTILL_MPS,
+            at_stopping_point=stopped_at is not None,
+            dwell_elapsed=dwell,
+            movement_authority_allows_departure=ahead is not None and ahead > MIN_AUTHORITY_M,
+            distance_to_next_stop_sufficient=next_stop is not None,
+            trackside_session_alive=self.session_alive,
+            remote_driving_selected=self.remote_selected,
+        )  # fmt: skip
+
+    def step_control(self, now_s: float) -> float:
+        """The ATO-OB controller and the ADF: the force demand [N] until the next step."""
+        out = self.controller.step(now_s, self._inputs(now_s))
+        if out.automatic_driving_requested != self._ad_requested:
+            self._ad_requested = out.automatic_driving_requested
+            self.etcs.request_automatic_driving(self._ad_requested, now_s)
+        plant, driving = self.plant, self.driving
+        mode, traction = out.mode_request, out.traction_allowed
+        if self.remote_selected and not self.engaged and out.state is not m.AtoState.FAILURE:
+            mode, traction = ModeRequest.REMOTE, True
+        if mode is ModeRequest.AUTONOMOUS and not driving.sc.needs_autonomous:
+            self._start_journey(now_s)
+            driving.engage(now_s)
+        elif mode is ModeRequest.OFF and driving.state is not m.ScState.OFF:
+            driving.disengage(now_s)
+        elif mode is ModeRequest.REMOTE and driving.state is m.ScState.OFF:
+            self.remote(self.remote_target_mps or 0.0, now_s)
+        if out.stop_at_next_stopping_point and not driving.fallback_active and self.engaged:
+            driving.stop_at_next_stopping_point(now_s, position_m=plant.position_m,
+                                                speed_mps=plant.speed_mps)  # fmt: skip
+            self._note(m.EventSeverity.WARNING, "ato.fallback_stop",
+                       "trackside lost: stopping at the next stopping point")  # fmt: skip
+        etcs = self.etcs.output
+        ahead = [d for d in (out.end_of_authority_distance_m, out.supervised_location_distance_m)
+                 if d is not None]  # fmt: skip
+        permitted = out.permitted_speed_mps if etcs is not None else math.inf
+        driving.set_etcs_limits(permitted, min(ahead) if ahead else None,
+                                position_m=plant.position_m)  # fmt: skip
+        etcs_brake = etcs is not None and (etcs.service_brake or etcs.emergency_brake)
+        self.force_demand_n = driving.step(
+            now_s, position_m=plant.position_m, speed_mps=plant.speed_mps,
+            applied_force_n=plant.applied_force_n,
+            gradient_permille=self.track_map.gradient_permille(plant.position_m),
+            force_limits_n=plant.force_limits_n(plant.speed_mps),
+            traction_allowed=traction and not (etcs is not None and etcs.traction_cut),
+            service_brake=out.full_service_brake or etcs_brake,
+        )  # fmt: skip
+        return self.force_demand_n

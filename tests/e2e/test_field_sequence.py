@@ -1,0 +1,224 @@
+"""The seed 000 field sequence end to end: router + trackside service + onboard, all real.
+
+RD at 30 km/h in SR → the balise group at 150 m brings FS → stop → the journey profile is sent
+through the REST API and acknowledged → AD engaged → three stops → end of journey. Then: the
+trackside goes away while the vehicle is engaged, and the vehicle stops at its next stopping
+point on its own. The onboard runs in lockstep (SimClock); the test advances it in slices and
+acts between them, as the operator would.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import zenoh
+from fastapi.testclient import TestClient
+
+from onboard.node import OnboardNode, OnboardSettings
+from onboard.runtime import SimClock
+from protocol import TypedSubscriber, ZenohSettings, open_session, request
+from protocol import messages as m
+from protocol.registry import COMMAND, EVENT
+from tests.conftest import wait_for
+from trackdb import TrackMap, load_seed_line
+from trackside.config import Settings
+from trackside.main import create_app
+
+pytestmark = pytest.mark.e2e
+
+ADMIN = ("admin", "e2e-password")
+RING = TrackMap(load_seed_line("bologna-ring"))
+
+
+@pytest.fixture
+def trackside(router_endpoint: str, tmp_path: Path) -> Iterator[tuple[TestClient, dict[str, str]]]:
+    settings = Settings(
+        database_url=f"sqlite:///{tmp_path / 'ts.db'}", zenoh_connect=(router_endpoint,),
+        admin_user=ADMIN[0], admin_password=ADMIN[1],  # type: ignore[arg-type]
+    )  # fmt: skip
+    with TestClient(create_app(settings)) as client:
+        response = client.post(
+            "/api/v1/auth/token", data=dict(zip(("username", "password"), ADMIN, strict=True))
+        )
+        yield client, {"Authorization": f"Bearer {response.json()['access_token']}"}
+
+
+class Vehicle:
+    """The onboard in lockstep, with an operator's hands: commands and a running clock."""
+
+    def __init__(self, session: zenoh.Session, operator: zenoh.Session) -> None:
+        self.node = OnboardNode(
+            OnboardSettings(vehicle_id="URV1"), session=session, clock=SimClock(),
+            track_map=RING,
+        )  # fmt: skip
+        self.operator = operator
+        self.events: list[m.Event] = []
+        self._events = TypedSubscriber(
+            operator, EVENT, on_message=lambda _k, e: self.events.append(e), vehicle="URV1"
+        )
+        self._command_id = 0
+
+    def run_until(self, condition: Callable[[], bool], limit_s: float, step_s: float = 1.0) -> bool:
+        """Advance simulated time until ``condition`` holds (checked every ``step_s``)."""
+        end = self.node.clock.now_s + limit_s
+        while self.node.clock.now_s < end:
+            if condition():
+                return True
+            self.node.run(step_s)
+        return condition()
+
+    def command(self, body: Any) -> m.CommandAck:
+        self._command_id += 1
+        command = m.Command(vehicle_id="URV1", command_id=self._command_id, issued_by="e2e",
+                            body=body)  # fmt: skip
+        ack: m.CommandAck = request(self.operator, COMMAND, command, vehicle="URV1")
+        return ack
+
+    def while_running(self, action: Callable[[], Any]) -> Any:
+        """Do ``action`` (which waits for the vehicle) while the vehicle runs."""
+        result: list[Any] = []
+        worker = threading.Thread(target=lambda: result.append(action()), daemon=True)
+        worker.start()
+        while worker.is_alive():
+            self.node.run(0.2)
+        return result[0]
+
+    @property
+    def stack(self) -> Any:
+        return self.node.stack
+
+    def close(self) -> None:
+        self._events.close()
+        self.node.close()
+
+
+def _field_journey(client: TestClient, headers: dict[str, str], start_m: float) -> None:
+    journey = {
+        "id": "field-test", "line_id": "bologna-ring", "start_position_m": start_m,
+        "max_speed_mps": 40 / 3.6,
+        "timing_points": [
+            {"id": "east", "stopping_point_id": "east", "arrival_time_s": 300.0,
+             "departure_time_s": 320.0},
+            {"id": "south", "stopping_point_id": "south", "arrival_time_s": 550.0,
+             "departure_time_s": 570.0},
+            {"id": "north", "stopping_point_id": "north", "arrival_time_s": 1000.0,
+             "end_of_journey": True},
+        ],
+    }  # fmt: skip
+    response = client.post("/api/v1/journeys", json=journey, headers=headers)
+    assert response.status_code == 201, response.text
+
+
+def _to_standstill_after_rd(vehicle: Vehicle) -> None:
+    node = vehicle.node
+    assert vehicle.run_until(
+        lambda: node.session_client.established and node.track_database.versions_match, 30.0,
+        step_s=0.2,
+    )  # fmt: skip
+    assert node.stack.etcs.mode is m.EtcsMode.SR
+    assert vehicle.command(m.RemoteDrivingTargetCommand(target_speed_mps=30 / 3.6)).accepted
+    assert vehicle.run_until(lambda: node.stack.etcs.mode is m.EtcsMode.FS, 60.0)
+    assert node.plant.position_m > 150.0  # the balise group brought FS
+    assert vehicle.command(m.RemoteDrivingTargetCommand(target_speed_mps=0.0)).accepted
+    assert vehicle.run_until(lambda: node.plant.speed_mps == 0.0, 60.0)
+
+
+def _send_journey(vehicle: Vehicle, client: TestClient, headers: dict[str, str]) -> None:
+    _field_journey(client, headers, RING.normalise(vehicle.node.plant.position_m))
+    response = vehicle.while_running(
+        lambda: client.post(
+            "/api/v1/vehicles/URV1/journey-profile", json={"journey_id": "field-test"},
+            headers=headers,
+        )
+    )  # fmt: skip
+    assert response.status_code == 200, response.text
+    assert response.json()["accepted"] is True
+
+
+def _engage(vehicle: Vehicle) -> None:
+    assert vehicle.run_until(lambda: vehicle.stack.ato_state is m.AtoState.READY, 10.0, 0.2)
+    assert vehicle.command(m.EngageCommand()).accepted
+    assert vehicle.run_until(lambda: vehicle.stack.ato_state is m.AtoState.ENGAGED, 2.0, 0.2)
+
+
+def test_the_seed_000_field_sequence_on_bologna_ring(
+    router_endpoint: str, trackside: tuple[TestClient, dict[str, str]]
+) -> None:
+    client, headers = trackside
+    connect = ZenohSettings(connect=(router_endpoint,))
+    with open_session(connect) as session, open_session(connect) as operator:
+        vehicle = Vehicle(session, operator)
+        try:
+            _to_standstill_after_rd(vehicle)
+            _send_journey(vehicle, client, headers)
+            _engage(vehicle)
+            assert vehicle.stack.etcs.mode is m.EtcsMode.AD
+            stack = vehicle.stack
+            stops: list[tuple[str, float, float]] = []
+
+            def record_stop() -> bool:
+                stop = stack.driving.stopped_at(vehicle.node.plant.position_m,
+                                                vehicle.node.plant.speed_mps)  # fmt: skip
+                if stop is not None and (not stops or stops[-1][0] != stop.timing_point_id):
+                    error = vehicle.node.plant.position_m - stack.driving._origin_m
+                    stops.append((stop.timing_point_id, stack.driving.journey_time_s(
+                        vehicle.node.clock.now_s), error - stop.distance_m))  # fmt: skip
+                return stack.ato_state is m.AtoState.NOT_AVAILABLE
+
+            assert vehicle.run_until(record_stop, 1100.0, step_s=0.4)
+            assert [name for name, _, _ in stops] == ["east", "south", "north"]
+            for (_, arrival_s, error_m), planned_s in zip(stops, (300.0, 550.0, 1000.0),
+                                                          strict=True):  # fmt: skip
+                assert abs(error_m) <= 0.5
+                assert abs(arrival_s - planned_s) <= 2.5
+            assert RING.normalise(vehicle.node.plant.position_m) == pytest.approx(550.0, abs=0.5)
+            # The ADF drove the journey without a single ETCS intervention.
+            assert stack.etcs.service_brake_interventions == 0
+            assert stack.etcs.emergency_brake_interventions == 0
+            assert wait_for(lambda: any(e.code == "journey.accepted" for e in vehicle.events))
+            status = client.get("/api/v1/vehicles/URV1", headers=headers).json()["status"]
+            assert status["ato_state"] == "NA" and status["journey_id"] == "field-test"
+        finally:
+            vehicle.close()
+
+
+def test_trackside_loss_while_engaged_ends_at_the_next_stopping_point(
+    router_endpoint: str, tmp_path: Path
+) -> None:
+    settings = Settings(
+        database_url=f"sqlite:///{tmp_path / 'ts.db'}", zenoh_connect=(router_endpoint,),
+        admin_user=ADMIN[0], admin_password=ADMIN[1],  # type: ignore[arg-type]
+    )  # fmt: skip
+    connect = ZenohSettings(connect=(router_endpoint,))
+    with open_session(connect) as session, open_session(connect) as operator:
+        vehicle = Vehicle(session, operator)
+        try:
+            with TestClient(create_app(settings)) as client:
+                token = client.post(
+                    "/api/v1/auth/token",
+                    data=dict(zip(("username", "password"), ADMIN, strict=True)),
+                ).json()["access_token"]
+                headers = {"Authorization": f"Bearer {token}"}
+                _to_standstill_after_rd(vehicle)
+                _send_journey(vehicle, client, headers)
+                _engage(vehicle)
+                vehicle.node.run(60.0)
+            # The trackside is gone (its service and Zenoh session closed) in the middle of the
+            # first leg: the onboard notices the silence and stops at the next stopping point.
+            stack = vehicle.stack
+            assert vehicle.run_until(lambda: stack.driving.fallback_active, 20.0, 0.2)
+            assert wait_for(lambda: any(e.code == "session.lost" for e in vehicle.events))
+            assert stack.ato_state is m.AtoState.ENGAGED
+            assert vehicle.run_until(
+                lambda: stack.driving.stopped_at(vehicle.node.plant.position_m,
+                                                 vehicle.node.plant.speed_mps) is not None,
+                400.0,
+            )  # fmt: skip
+            assert RING.normalise(vehicle.node.plant.position_m) == pytest.approx(1975.0, abs=0.5)
+            assert vehicle.run_until(lambda: stack.ato_state is m.AtoState.AVAILABLE, 5.0, 0.2)
+        finally:
+            vehicle.close()

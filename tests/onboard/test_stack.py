@@ -1,0 +1,81 @@
+"""The onboard stack without a network: journey review, operator requests, RBC MAs."""
+
+from __future__ import annotations
+
+import pytest
+
+from onboard.plant import URV_PARAMETERS, PointMassModel
+from onboard.stack import OnboardStack
+from protocol import messages as m
+from trackdb import TrackMap, load_seed_line
+
+RING = TrackMap(load_seed_line("bologna-ring"))
+
+
+def stack(line: TrackMap = RING, position_m: float = 300.0) -> OnboardStack:
+    plant = PointMassModel(URV_PARAMETERS, position_m=position_m)
+    result = OnboardStack(line, plant, URV_PARAMETERS, energy_plans=False)
+    result.track_database.record_trackside_version(
+        m.LineVersionReply(line_id=line.line.id, version=line.version)
+    )
+    return result
+
+
+def profile(arrival_s: float, *, vehicle: str = "URV1", version: int = 1) -> m.JourneyProfile:
+    point = m.TimingPoint(
+        id="east", position_m=1975.0, kind=m.TimingPointKind.STOPPING, arrival_time_s=arrival_s,
+        end_of_journey=True,
+    )  # fmt: skip
+    return m.JourneyProfile(
+        vehicle_id=vehicle, journey_id="j", version=version, status=m.JourneyProfileStatus.VALID,
+        line_id="bologna-ring", track_data_version=RING.version, max_speed_mps=40 / 3.6,
+        timing_points=(point,),
+    )  # fmt: skip
+
+
+def test_a_journey_whose_leg_cannot_be_run_in_time_is_rejected_with_the_reason() -> None:
+    onboard = stack()
+    accepted, reason = onboard.review_journey(profile(arrival_s=60.0))
+    assert not accepted and reason is not None and "infeasible" in reason
+    assert onboard.journey_plan is None and onboard.track_database.journey is None
+    assert onboard.review_journey(profile(arrival_s=300.0)) == (True, None)
+    assert onboard.journey_plan is not None
+    assert onboard.journey_plan.stops[0].distance_m == pytest.approx(1975.0 - 300.0)
+
+
+def test_a_journey_on_other_track_data_is_rejected() -> None:
+    onboard = stack()
+    other = profile(300.0).model_copy(update={"track_data_version": "0" * 64})
+    accepted, reason = onboard.review_journey(other)
+    assert not accepted and reason == "journey planned on other track data"
+
+
+def test_requests_are_refused_with_reasons_in_the_wrong_state() -> None:
+    onboard = stack()
+    engage = onboard.refusal(m.EngageCommand())
+    assert engage is not None and "no journey profile" in engage
+    onboard.review_journey(profile(300.0))
+    onboard.step_etcs(0.0)
+    onboard.step_control(0.0)
+    engage = onboard.refusal(m.EngageCommand())
+    assert engage is not None and "not ready" in engage  # no session, ETCS in SR
+    assert onboard.refusal(m.DisengageCommand()) == "ATO-OB is not engaged"
+    fast = onboard.refusal(m.RemoteDrivingTargetCommand(target_speed_mps=60.0))
+    assert fast is not None and "above line speed" in fast
+
+
+def test_an_rbc_movement_authority_reaches_etcs() -> None:
+    line = TrackMap(load_seed_line("milano-bologna"))
+    onboard = stack(line, position_m=1000.0)
+    onboard.step_etcs(0.0)
+    message = m.MovementAuthorityMessage(
+        vehicle_id="URV1", ma_id=1, change=m.MovementAuthorityChange.ISSUED, issued_at_s=0.0,
+        line_id=line.line.id, line_version=line.version,
+        authority=m.MovementAuthorityExtent(start_m=1000.0, end_of_authority_m=6000.0),
+    )  # fmt: skip
+    assert onboard.receive_movement_authority(message, 0.1) == "new"
+    output = onboard.etcs.step(0.2, 1000.0, 0.0)
+    assert output.end_of_authority_distance_m == pytest.approx(5000.0, abs=1.0)
+    revoked = message.model_copy(update={"ma_id": 2, "authority": None,
+                                          "change": m.MovementAuthorityChange.REVOKED})  # fmt: skip
+    assert onboard.receive_movement_authority(revoked, 0.3) == "revoked: emergency stop"
