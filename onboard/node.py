@@ -387,6 +387,8 @@ class OnboardNode:
     def status(self, now_ns: int) -> m.StatusReport:
         etcs = self.stack.etcs.output
         journey = self.track_database.journey
+        driving, now_s = self.stack.driving, now_ns / NS_PER_S
+        next_stop = driving.next_stop(self.plant.position_m) if driving.journey else None
         return m.StatusReport(
             vehicle_id=self.vehicle_id,
             seq=self._status_seq,
@@ -402,6 +404,16 @@ class OnboardNode:
             supervision_status=etcs.supervision_status,
             target_speed_mps=self.target_speed_mps,
             journey_id=None if journey is None else journey.journey_id,
+            position_confidence_m=max(etcs.odometry.over_reading_m, etcs.odometry.under_reading_m),
+            next_timing_point_id=None if next_stop is None else next_stop.timing_point_id,
+            arrivals=tuple(
+                m.ArrivalEstimate(
+                    timing_point_id=stop.timing_point_id,
+                    scheduled_s=stop.arrival_s,
+                    estimated_s=estimate,
+                )
+                for stop, estimate in driving.arrival_estimates(now_s, self.plant.position_m)
+            ),  # fmt: skip
         )
 
     def emit(

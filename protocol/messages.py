@@ -24,6 +24,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = [
     "SCHEMA_VERSION",
+    "ArrivalEstimate",
     "AtoState",
     "Command",
     "CommandAck",
@@ -141,6 +142,16 @@ class Message(BaseModel):
     schema_version: Literal[1] = Field(default=1, description="Message schema, SCHEMA_VERSION")
 
 
+class ArrivalEstimate(BaseModel):
+    """When the vehicle expects to reach a timing point of its journey."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    timing_point_id: str = Field(min_length=1, max_length=64)
+    scheduled_s: NonNegativeFloat = Field(description="Planned arrival, from journey start [s]")
+    estimated_s: NonNegativeFloat = Field(description="Estimated arrival, from journey start [s]")
+
+
 class StatusReport(Message):
     """Periodic status of one vehicle (the STR), published at the report interval."""
 
@@ -160,6 +171,15 @@ class StatusReport(Message):
         default=None, description="Remote-driving target speed [m/s], when one is set"
     )
     journey_id: str | None = Field(default=None, max_length=64, description="Accepted journey")
+    position_confidence_m: NonNegativeFloat | None = Field(
+        default=None, description="Half-width of the odometry confidence interval [m]"
+    )
+    next_timing_point_id: str | None = Field(
+        default=None, max_length=64, description="The next timing point of the journey"
+    )
+    arrivals: tuple[ArrivalEstimate, ...] = Field(
+        default=(), max_length=500, description="Estimated arrivals at the timing points ahead"
+    )
 
 
 class EventSeverity(StrEnum):

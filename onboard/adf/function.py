@@ -47,6 +47,7 @@ ODOMETRY_SHARE = 0.06
 """The SvL seen from the max-safe front end comes closer by 5 % of the distance run (the
 odometry interval grows): the plan anticipates it, with a margin."""
 PASSED_M = 10.0
+DELAY_PROBE_M = 0.5
 
 
 class NoJourneyError(RuntimeError):
@@ -185,6 +186,30 @@ class DrivingFunction:
             if not (stopped or travelled > stop.distance_m + PASSED_M):
                 return
             self._served += 1
+
+    def arrival_estimates(self, now_s: float, position_m: float) -> list[tuple[JourneyStop, float]]:
+        """For each stop not yet served: the stop and its estimated arrival [s from the journey's
+        start], the schedule shifted by the current delay against the plan (never early: the
+        plan keeps the schedule)."""
+        if self.journey is None or self.autonomous is None:
+            return []
+        self._update_served(position_m, speed_mps=math.inf)
+        plan = self.autonomous.plan
+        journey_s = now_s - self._origin_s
+        ahead = position_m - self._origin_m + DELAY_PROBE_M
+        low, high = plan.legs[0].start_s, plan.end_s
+        if plan.reference(high)[0] < ahead:
+            reference_s = high
+        else:
+            for _ in range(40):  # when the reference passes just beyond the vehicle
+                middle = 0.5 * (low + high)
+                low, high = (middle, high) if plan.reference(middle)[0] < ahead else (low, middle)
+            reference_s = high
+        delay = max(journey_s - reference_s, 0.0)
+        return [
+            (stop, max(stop.arrival_s + delay, journey_s))
+            for stop in self.journey.stops[self._served :]
+        ]
 
     def stopped_at(self, position_m: float, speed_mps: float) -> JourneyStop | None:
         """The stop of the journey the vehicle stands at, if any."""

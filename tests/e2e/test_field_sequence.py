@@ -158,6 +158,12 @@ def test_the_seed_000_field_sequence_on_bologna_ring(
             _engage(vehicle)
             assert vehicle.stack.etcs.mode is m.EtcsMode.AD
             stack = vehicle.stack
+            vehicle.node.run(100.0)
+            report = vehicle.node.status(vehicle.node.clock.now_ns)
+            assert report.next_timing_point_id == "east"
+            assert [a.timing_point_id for a in report.arrivals] == ["east", "south", "north"]
+            assert report.arrivals[0].estimated_s == pytest.approx(300.0, abs=2.0)
+            assert report.position_confidence_m is not None and report.position_confidence_m > 5.0
             stops: list[tuple[str, float, float]] = []
 
             def record_stop() -> bool:

@@ -27,6 +27,13 @@ status_reports = st.builds(
     supervision_status=_enum(m.SupervisionStatus),
     target_speed_mps=st.none() | non_negative,
     journey_id=st.none() | names,
+    position_confidence_m=st.none() | non_negative,
+    next_timing_point_id=st.none() | names,
+    arrivals=st.lists(
+        st.builds(m.ArrivalEstimate, timing_point_id=names, scheduled_s=non_negative,
+                  estimated_s=non_negative),
+        max_size=3,
+    ).map(tuple),
 )  # fmt: skip
 
 events = st.builds(

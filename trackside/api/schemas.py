@@ -46,6 +46,9 @@ class VehicleStatusPublic(BaseModel):
     supervision_status: m.SupervisionStatus
     target_speed_mps: float | None
     journey_id: str | None
+    position_confidence_m: float | None
+    next_timing_point_id: str | None
+    arrivals: list[m.ArrivalEstimate]
     age_s: float | None
     rate_ok: bool
 
