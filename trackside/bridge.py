@@ -6,9 +6,10 @@ freezes or its link breaks. Vehicles once seen stay listed, as not alive.
 
 The ATO-TS side of the session (``trackside.session``): handshakes are answered on
 ``ato/ts/session/{vehicle}``, each status report of an open session is acknowledged (STRAck), a
-session ends with the vehicle's liveliness, with a termination from either side, or when no
-report came within the response timeout of the onboard's simulated time. Journey profiles go out
-with :meth:`ZenohBridge.send_journey_profile`, which waits for the onboard's acknowledgement.
+session ends with the vehicle's liveliness, with a termination from either side, or when a
+report comes after a gap longer than the response timeout in the onboard's simulated time.
+Journey profiles go out with :meth:`ZenohBridge.send_journey_profile`, which waits for the
+onboard's acknowledgement.
 """
 
 from __future__ import annotations
@@ -134,13 +135,14 @@ class ZenohBridge:
                 self._alive.discard(vehicle)
         if not alive:
             self._status.forget(STATUS.key(vehicle=vehicle))
+            with self._session_lock:
+                self.sessions.close(vehicle)
         self._notify()
 
     def _on_status(self, key: str, report: m.StatusReport) -> None:
         if report.vehicle_id == STATUS.parse(key)["vehicle"]:
             with self._session_lock:
                 ack = self.sessions.on_status(report, report.sim_time_s)
-                self.sessions.expire(report.sim_time_s)
             if ack is not None:
                 self._publisher(STATUS_ACK, report.vehicle_id).put(ack)
         self._notify()

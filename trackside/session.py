@@ -9,7 +9,9 @@ tests drive it deterministically.
   other trackside is in charge of the vehicle; otherwise it is rejected (HSRej) with the reason.
 - Each status report (STR) of an established session is acknowledged (STRAck). A report whose
   counter is not newer than the last one taken is stale: rejected and counted.
-- A session is lost when no report arrived within the response timeout; either side may end it.
+- A session is lost when no report arrived within the response timeout (in the vehicle's own
+  time, seen when the next report comes), when the vehicle's liveliness token goes; either side
+  may end it.
 """
 
 from __future__ import annotations
@@ -79,13 +81,28 @@ class SessionManager:
         if report.seq <= session.last_seq:
             self.stale_reports += 1
             return None
+        if now_s - session.last_report_s > self.response_timeout_s:
+            # Reports stopped for longer than the timeout, in the vehicle's own time: the session
+            # lapsed meanwhile. Not acknowledged, the onboard loses it too and shakes hands again.
+            del self.sessions[report.vehicle_id]
+            self.lost += 1
+            return None
         session.last_seq = report.seq
         session.last_report_s = now_s
         session.reports += 1
         return m.StatusAck(vehicle_id=report.vehicle_id, seq=report.seq)
 
+    def close(self, vehicle_id: str) -> bool:
+        """The vehicle is gone (its liveliness token withdrawn): its session ends."""
+        if self.sessions.pop(vehicle_id, None) is None:
+            return False
+        self.lost += 1
+        return True
+
     def expire(self, now_s: float) -> list[str]:
-        """Close the sessions with no report within the response timeout; their vehicles."""
+        """Close the sessions with no report within the response timeout of ``now_s``, for
+        callers with one time base for every vehicle (the bridge's vehicles each have their
+        own simulated time, so it relies on :meth:`on_status` and :meth:`close`)."""
         lost = [
             vehicle
             for vehicle, session in self.sessions.items()

@@ -52,3 +52,13 @@ def test_a_silent_vehicle_loses_its_session_after_the_response_timeout() -> None
     assert manager.expire(1.5) == []
     assert manager.expire(1.6) == ["URV1"]
     assert manager.sessions == {} and manager.lost == 1
+
+
+def test_a_report_after_a_gap_longer_than_the_timeout_finds_the_session_lapsed() -> None:
+    manager = SessionManager("ts-1", response_timeout_s=1.0)
+    manager.on_request(request(), 0.0)
+    assert manager.on_status(report(0), 0.5) is not None
+    assert manager.on_status(report(1), 2.0) is None  # 1.5 s of silence, in the vehicle's time
+    assert manager.sessions == {} and manager.lost == 1
+    manager.on_request(request(), 2.1)
+    assert manager.close("URV1") and not manager.close("URV1")
