@@ -14,7 +14,8 @@ import numpy.typing as npt
 
 from onboard.adf.autonomous import AutonomousDriving
 from onboard.adf.nmpc import NmpcConfig, NmpcController, NmpcStats
-from onboard.adf.odp import OdpPlan, replan_to_stop
+from onboard.adf.odp import OdpPlan
+from onboard.adf.odp_energy import replan_from_state
 from onboard.adf.rd_controller import RemoteDrivingController
 from onboard.adf.supervisor import ModeRequest, SupervisoryController
 from onboard.plant.point_mass import PointMassModel, PointMassParameters
@@ -155,8 +156,8 @@ def run_handover_sequence(
         gradient = track_map.gradient_permille(chainage)
         requests: list[ModeRequest] = []
         if k == round(40.0 / control_s):
-            plan = replan_to_stop(
-                track_map, now_s=now, start_chainage_m=start_chainage_m,
+            plan = replan_from_state(
+                track_map, model, now_s=now, start_chainage_m=start_chainage_m,
                 distance_m=plant.position_m, speed_mps=plant.speed_mps, stop_distance_m=1200.0,
                 cruise_mps=40 / 3.6,
             )  # fmt: skip

@@ -30,11 +30,9 @@ __all__ = [
     "LspbSegment",
     "OdpLeg",
     "OdpPlan",
-    "SpeedChangeThenStop",
     "leg_speed_limit_mps",
     "lspb_segment",
     "plan_legs",
-    "replan_to_stop",
 ]
 
 COMFORT_ACCELERATION_MPS2 = 0.5
@@ -207,80 +205,3 @@ def leg_speed_limit_mps(track_map: TrackMap, start_m: float, length_m: float) ->
     """The lowest MRSP [m/s] over the leg."""
     samples = max(2, math.ceil(length_m / LIMIT_SAMPLE_M) + 1)
     return min(track_map.mrsp_mps(start_m + length_m * k / (samples - 1)) for k in range(samples))
-
-
-@dataclass(frozen=True)
-class SpeedChangeThenStop:
-    """From ``initial_speed_mps`` change to ``cruise_speed_mps`` at ``acceleration_mps2``,
-    cruise, and brake at ``braking_mps2`` to stop after ``distance_m``: a plan replanned from the
-    current reference (a mode change, a new movement authority) rather than from standstill."""
-
-    initial_speed_mps: float
-    cruise_speed_mps: float
-    distance_m: float
-    acceleration_mps2: float = COMFORT_ACCELERATION_MPS2
-    braking_mps2: float = COMFORT_ACCELERATION_MPS2
-
-    def __post_init__(self) -> None:
-        if self._change_m + self._brake_m > self.distance_m:
-            raise InfeasibleLegError(
-                f"{self.distance_m:.0f} m too short to reach {self.cruise_speed_mps:.2f} m/s "
-                "and stop"
-            )
-
-    @property
-    def _change_s(self) -> float:
-        return abs(self.cruise_speed_mps - self.initial_speed_mps) / self.acceleration_mps2
-
-    @property
-    def _change_m(self) -> float:
-        return 0.5 * (self.cruise_speed_mps + self.initial_speed_mps) * self._change_s
-
-    @property
-    def _brake_m(self) -> float:
-        return self.cruise_speed_mps**2 / (2.0 * self.braking_mps2)
-
-    @property
-    def _cruise_s(self) -> float:
-        cruise_m = self.distance_m - self._change_m - self._brake_m
-        return cruise_m / self.cruise_speed_mps if self.cruise_speed_mps > 0 else 0.0
-
-    @property
-    def duration_s(self) -> float:
-        return self._change_s + self._cruise_s + self.cruise_speed_mps / self.braking_mps2
-
-    def at(self, t_s: float) -> tuple[float, float]:
-        t = min(max(t_s, 0.0), self.duration_s)
-        v0, vc = self.initial_speed_mps, self.cruise_speed_mps
-        if t < self._change_s:
-            a = self.acceleration_mps2 if vc >= v0 else -self.acceleration_mps2
-            return v0 * t + 0.5 * a * t * t, v0 + a * t
-        if t < self._change_s + self._cruise_s:
-            return self._change_m + vc * (t - self._change_s), vc
-        remaining = self.duration_s - t
-        return self.distance_m - 0.5 * self.braking_mps2 * remaining**2, (
-            self.braking_mps2 * remaining
-        )
-
-
-def replan_to_stop(
-    track_map: TrackMap,
-    *,
-    now_s: float,
-    start_chainage_m: float,
-    distance_m: float,
-    speed_mps: float,
-    stop_distance_m: float,
-    cruise_mps: float,
-) -> OdpPlan:
-    """A plan from the current reference (distance travelled and speed at ``now_s``) to a stop
-    ``stop_distance_m`` further on, never above the MRSP over that stretch."""
-    limit = leg_speed_limit_mps(track_map, start_chainage_m + distance_m, stop_distance_m)
-    profile = SpeedChangeThenStop(
-        initial_speed_mps=min(speed_mps, limit), cruise_speed_mps=min(cruise_mps, limit),
-        distance_m=stop_distance_m,
-    )  # fmt: skip
-    return OdpPlan(
-        [OdpLeg(now_s, distance_m, profile)], start_chainage_m=start_chainage_m,
-        track_map=track_map, cap_mps=cruise_mps,
-    )  # fmt: skip

@@ -10,7 +10,7 @@ acts between them, as the operator would.
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,27 +24,12 @@ from protocol import TypedSubscriber, ZenohSettings, open_session, request
 from protocol import messages as m
 from protocol.registry import COMMAND, EVENT
 from tests.conftest import wait_for
+from tests.e2e.conftest import running_trackside
 from trackdb import TrackMap, load_seed_line
-from trackside.config import Settings
-from trackside.main import create_app
 
 pytestmark = pytest.mark.e2e
 
-ADMIN = ("admin", "e2e-password")
 RING = TrackMap(load_seed_line("bologna-ring"))
-
-
-@pytest.fixture
-def trackside(router_endpoint: str, tmp_path: Path) -> Iterator[tuple[TestClient, dict[str, str]]]:
-    settings = Settings(
-        database_url=f"sqlite:///{tmp_path / 'ts.db'}", zenoh_connect=(router_endpoint,),
-        admin_user=ADMIN[0], admin_password=ADMIN[1],  # type: ignore[arg-type]
-    )  # fmt: skip
-    with TestClient(create_app(settings)) as client:
-        response = client.post(
-            "/api/v1/auth/token", data=dict(zip(("username", "password"), ADMIN, strict=True))
-        )
-        yield client, {"Authorization": f"Bearer {response.json()['access_token']}"}
 
 
 class Vehicle:
@@ -195,20 +180,11 @@ def test_the_seed_000_field_sequence_on_bologna_ring(
 def test_trackside_loss_while_engaged_ends_at_the_next_stopping_point(
     router_endpoint: str, tmp_path: Path
 ) -> None:
-    settings = Settings(
-        database_url=f"sqlite:///{tmp_path / 'ts.db'}", zenoh_connect=(router_endpoint,),
-        admin_user=ADMIN[0], admin_password=ADMIN[1],  # type: ignore[arg-type]
-    )  # fmt: skip
     connect = ZenohSettings(connect=(router_endpoint,))
     with open_session(connect) as session, open_session(connect) as operator:
         vehicle = Vehicle(session, operator)
         try:
-            with TestClient(create_app(settings)) as client:
-                token = client.post(
-                    "/api/v1/auth/token",
-                    data=dict(zip(("username", "password"), ADMIN, strict=True)),
-                ).json()["access_token"]
-                headers = {"Authorization": f"Bearer {token}"}
+            with running_trackside(router_endpoint, tmp_path) as (client, headers):
                 _to_standstill_after_rd(vehicle)
                 _send_journey(vehicle, client, headers)
                 _engage(vehicle)

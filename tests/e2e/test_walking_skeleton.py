@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -18,25 +17,8 @@ from protocol import messages as m
 from protocol.registry import COMMAND
 from tests.conftest import wait_for
 from trackdb import TrackMap, load_seed_line
-from trackside.config import Settings
-from trackside.main import create_app
 
 pytestmark = pytest.mark.e2e
-
-ADMIN = ("admin", "e2e-password")
-
-
-@pytest.fixture
-def trackside(router_endpoint: str, tmp_path: Path) -> Iterator[tuple[TestClient, dict[str, str]]]:
-    settings = Settings(
-        database_url=f"sqlite:///{tmp_path / 'ts.db'}", zenoh_connect=(router_endpoint,),
-        admin_user=ADMIN[0], admin_password=ADMIN[1],  # type: ignore[arg-type]
-    )  # fmt: skip
-    with TestClient(create_app(settings)) as client:
-        response = client.post(
-            "/api/v1/auth/token", data=dict(zip(("username", "password"), ADMIN, strict=True))
-        )
-        yield client, {"Authorization": f"Bearer {response.json()['access_token']}"}
 
 
 def _vehicle(client: TestClient, headers: dict[str, str], vehicle: str) -> dict[str, object] | None:

@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 from onboard.adf.autonomous import AutonomousDriving
 from onboard.adf.nmpc import NmpcController
-from onboard.adf.odp import OdpPlan, plan_legs, replan_to_stop
+from onboard.adf.odp import OdpPlan, plan_legs
 from onboard.adf.odp_energy import plan_energy_legs, replan_from_state
 from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.plant.point_mass import with_model_mismatch
@@ -34,9 +34,9 @@ def test_a_shortened_movement_authority_stops_the_train_before_the_new_end() -> 
             # The trackside shortens the MA: its end is now 300 m ahead of the train.
             end_of_authority_m = plant.position_m + 300.0
             driving = AutonomousDriving(
-                replan_to_stop(
-                    ring, now_s=now, start_chainage_m=START_M, distance_m=plant.position_m,
-                    speed_mps=plant.speed_mps,
+                replan_from_state(
+                    ring, URV_PARAMETERS, now_s=now, start_chainage_m=START_M,
+                    distance_m=plant.position_m, speed_mps=plant.speed_mps,
                     stop_distance_m=end_of_authority_m - EOA_MARGIN_M - plant.position_m,
                     cruise_mps=plant.speed_mps,
                 ),

@@ -8,7 +8,8 @@ import pytest
 from hypothesis import given
 from pydantic import ValidationError
 
-from onboard.etcs import EtcsOnboard, MaChange, MaSection, MovementAuthority
+from onboard.etcs import EtcsOnboard, MaChange
+from onboard.stack import authority_from_extent
 from protocol import messages as m
 from protocol.registry import MOVEMENT_AUTHORITY, MOVEMENT_AUTHORITY_CURRENT
 from tests.protocol.strategies import movement_authority_messages, movement_authority_replies
@@ -24,29 +25,12 @@ def _message(**overrides: Any) -> dict[str, Any]:
     } | overrides  # fmt: skip
 
 
-def onboard_authority(extent: m.MovementAuthorityExtent) -> MovementAuthority:
-    """What the onboard makes of the wire extent: distances from its start, as in packet 15."""
-    return MovementAuthority(
-        reference_m=extent.start_m,
-        end_of_authority_m=extent.length_m,
-        danger_point_m=extent.danger_point_m,
-        overlap_m=extent.overlap_m,
-        overlap_timer_s=extent.overlap_timer_s,
-        overlap_timer_start_m=extent.overlap_timer_start_m,
-        release_speed_mps=extent.release_speed_mps,
-        sections=tuple(
-            MaSection(length_m=s.length_m, timer_s=s.timer_s, timer_stop_m=s.timer_stop_m)
-            for s in extent.sections
-        ),
-    )
-
-
 @given(movement_authority_messages())
 def test_every_granted_message_makes_an_onboard_movement_authority(
     message: m.MovementAuthorityMessage,
 ) -> None:
     if message.authority is not None:
-        authority = onboard_authority(message.authority)
+        authority = authority_from_extent(message.authority)
         assert authority.reference_m + authority.end_of_authority_m == pytest.approx(
             message.authority.end_of_authority_m, rel=1e-9, abs=1e-6
         )
@@ -58,7 +42,7 @@ def test_the_onboard_applies_an_extension_and_a_shortening() -> None:
     longer = first.model_copy(update={"end_of_authority_m": 1500.0})
     shorter = m.MovementAuthorityExtent(start_m=100.0, end_of_authority_m=600.0)
     changes = [
-        etcs.receive_movement_authority(onboard_authority(extent), now_s)
+        etcs.receive_movement_authority(authority_from_extent(extent), now_s)
         for now_s, extent in enumerate((first, longer, shorter))
     ]
     assert changes == [MaChange.NEW, MaChange.EXTENDED, MaChange.SHORTENED]
