@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import shutil
 import threading
 from collections.abc import Iterator
@@ -101,7 +102,8 @@ def test_fleet_page_lists_urv1_and_its_status_changes(console_url: str, tmp_path
         expect(row).to_be_visible(timeout=5000)
         expect(page.locator("#connection")).to_have_text("live")
         expect(row.locator("td").nth(1)).to_have_text("yes")
-        expect(row.locator("td").nth(6)).to_have_text("SR")
+        # ETCS: SR from the start, FS once the balise group at 150 m has given an MA.
+        expect(row.locator("td").nth(6)).to_have_text(re.compile(r"^(SR|FS)$"))
         position = row.locator("td[data-field=position]")
         first = position.inner_text()
         expect(position).not_to_have_text(first, timeout=5000)
