@@ -204,3 +204,41 @@ def test_trackside_loss_while_engaged_ends_at_the_next_stopping_point(
             assert vehicle.run_until(lambda: stack.ato_state is m.AtoState.AVAILABLE, 5.0, 0.2)
         finally:
             vehicle.close()
+
+
+def test_rbc_movement_authorities_reach_the_onboard_etcs(
+    router_endpoint: str, trackside: tuple[TestClient, dict[str, str]]
+) -> None:
+    """Level 2 on milano-bologna: the admin issues, extends and shortens the MA through REST;
+    the onboard's ETCS sees each change."""
+    client, headers = trackside
+    line = TrackMap(load_seed_line("milano-bologna"))
+    connect = ZenohSettings(connect=(router_endpoint,))
+    with open_session(connect) as session:
+        node = OnboardNode(
+            OnboardSettings(vehicle_id="URV1", line_id="milano-bologna", start_position_m=1000.0),
+            session=session, clock=SimClock(), track_map=line,
+        )  # fmt: skip
+        try:
+            etcs = node.stack.etcs
+
+            def eoa_ahead() -> float | None:
+                node.run(0.2)
+                return etcs.output.end_of_authority_distance_m
+
+            assert wait_for(lambda: node.session_client.established or (node.run(0.2), False)[1])
+            url = "/api/v1/rbc/URV1/ma"
+            body = {"start_m": 1000.0, "end_of_authority_m": 6000.0, "line_id": "milano-bologna"}
+            issued = client.post(url, json=body, headers=headers)
+            assert issued.status_code == 201, issued.text
+            assert wait_for(lambda: (eoa_ahead() or 0.0) == pytest.approx(5000.0, abs=1.0))
+            extended = client.post(f"{url}/extend", json={"end_of_authority_m": 9000.0},
+                                   headers=headers)  # fmt: skip
+            assert extended.status_code == 200, extended.text
+            assert wait_for(lambda: (eoa_ahead() or 0.0) == pytest.approx(8000.0, abs=1.0))
+            shortened = client.post(f"{url}/shorten", json={"end_of_authority_m": 4000.0},
+                                    headers=headers)  # fmt: skip
+            assert shortened.status_code == 200, shortened.text
+            assert wait_for(lambda: (eoa_ahead() or 0.0) == pytest.approx(3000.0, abs=1.0))
+        finally:
+            node.close()
