@@ -226,7 +226,11 @@ def test_rbc_movement_authorities_reach_the_onboard_etcs(
                 node.run(0.2)
                 return etcs.output.end_of_authority_distance_m
 
-            assert wait_for(lambda: node.session_client.established or (node.run(0.2), False)[1])
+            def established() -> bool:
+                node.run(0.2)
+                return node.session_client.established
+
+            assert wait_for(established)
             url = "/api/v1/rbc/URV1/ma"
             body = {"start_m": 1000.0, "end_of_authority_m": 6000.0, "line_id": "milano-bologna"}
             issued = client.post(url, json=body, headers=headers)
