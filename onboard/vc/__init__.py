@@ -1,0 +1,268 @@
+"""The Vital Control module (seeds 001, 004; DOMAIN.md §7.2): a pure, deterministic library.
+
+The VC is the GoA4 vehicle's extra protection: it checks every 40 ms that the ATO-OB is alive
+and the remote operator vigilant, supervises speed and odometry when ETCS is isolated, switches
+ETCS off and on by a radio relay, applies the emergency brake by de-energising the solenoid
+valves, rearms it only when safe and confirmed, and enters System Decay when recovery would not
+be safe. Three tasks on the executive, sharing no mutable state:
+
+- :mod:`~onboard.vc.task_a`: Task A (40 ms), composes the request to the ATO-OB;
+- :mod:`~onboard.vc.task_b`: Task B (2 ms, highest priority), checks the responses, the
+  deadlines, the odometry (:mod:`~onboard.vc.odometry`) and the digital inputs, raises the EB
+  flag and System Decay;
+- :mod:`~onboard.vc.task_c`: Task C (2 ms, after B), drives the valves and the relay;
+- :mod:`~onboard.vc.fsm`: their transition tables; :mod:`~onboard.vc.ipc`: their mailboxes and
+  messages; :mod:`~onboard.vc.module`: :class:`VitalControl`, which wires and registers them.
+
+Around them: the request/response messages (:mod:`~onboard.vc.messages`), the fault-injectable
+link (:mod:`~onboard.vc.link`), the emulated I/O (:mod:`~onboard.vc.hardware`), a test double of
+the ATO-OB (:mod:`~onboard.vc.responder`), and the scenario catalogue with its lockstep runner
+(:mod:`~onboard.vc.scenarios`, :mod:`~onboard.vc.catalogue`, :mod:`~onboard.vc.runner`).
+Parameters are in :class:`VcConfig` (:mod:`~onboard.vc.config`); errors in
+:mod:`onboard.vc._exceptions`.
+
+No Zenoh, no threads, no wall clock: every call takes ``now_s``. docs/vc.md describes the
+model and the choices.
+
+Abbreviations: VC (vital control), ATO-OB / ATO-TS (ATO onboard / trackside), EB (emergency
+brake), ETCS-OB (the ETCS onboard), BTM (balise transmission module), ATO-ODO (the odometry
+board), FSM (finite state machine), IPC (inter-process communication).
+"""
+
+from onboard.vc._exceptions import (
+    ScenarioError,
+    VcError,
+    VcInputError,
+)
+from onboard.vc.catalogue import (
+    CATALOGUE,
+    scenario,
+)
+from onboard.vc.config import (
+    KMH,
+    TIME_TOLERANCE_S,
+    VcConfig,
+)
+from onboard.vc.fsm import (
+    ALL_TABLES,
+    TASK_A_TRANSITIONS,
+    TASK_B_TRANSITIONS,
+    TASK_C_BRAKE_TRANSITIONS,
+    TASK_C_ETCS_TRANSITIONS,
+    BrakeState,
+    EtcsState,
+    Fsm,
+    FsmCoverage,
+    FsmTransition,
+    StateMachine,
+    TaskAState,
+    TaskBState,
+    TransitionRule,
+    Trigger,
+    select_rule,
+    transition_coverage,
+)
+from onboard.vc.hardware import (
+    FRAME_NUMBER_MODULO,
+    FULL_EB_DELAY_S,
+    RECHARGE_S,
+    RELAY_SWITCHING_DELAY_S,
+    RELEASE_FRACTION,
+    EmergencyBrakeValves,
+    PipeFault,
+    RadioRelay,
+    RelayFault,
+    TachometerBoard,
+    TachometerFault,
+    TachometerFaultMode,
+    TachometerFrame,
+    ValveCommand,
+)
+from onboard.vc.ipc import (
+    ActuationStatus,
+    Delivery,
+    Mailbox,
+    MessageQueue,
+    SupervisionStatus,
+    VcEvent,
+    VcEventKind,
+)
+from onboard.vc.link import (
+    FaultyLink,
+    LinkDirection,
+    LinkFault,
+    LinkFaultKind,
+    corrupt_response,
+)
+from onboard.vc.messages import (
+    DECAY_CONDITIONS,
+    PULSED_SECTIONS,
+    SECTIONS,
+    AtoObResponse,
+    AtoObStatus,
+    DecayReason,
+    EbCondition,
+    Notification,
+    Section,
+    SectionRequest,
+    SectionResponse,
+    VcRequest,
+    expected_response_number,
+)
+from onboard.vc.module import (
+    TASK_A_PRIORITY,
+    TASK_B_PRIORITY,
+    TASK_C_PRIORITY,
+    VcHardware,
+    VcOutputs,
+    VitalControl,
+)
+from onboard.vc.odometry import (
+    MAX_FRAME_GAP,
+    OdometryEstimate,
+    TachometerOdometry,
+)
+from onboard.vc.responder import (
+    OPERATOR_REACTION_S,
+    AtoObResponder,
+    OperatorAction,
+    OperatorActionKind,
+    ResponderFault,
+    ResponderFaultKind,
+)
+from onboard.vc.runner import (
+    ATO_OB_PRIORITY,
+    SEED_TIMINGS_MS,
+    STEP_S,
+    SURROUNDINGS_PRIORITY,
+    ScenarioResult,
+    TrainMotion,
+    count_by_class,
+    format_report,
+    run_catalogue,
+    run_scenario,
+)
+from onboard.vc.scenarios import (
+    SEED_HAZARDOUS_COUNTS,
+    SEED_SCENARIO_COUNT,
+    Fault,
+    Hazard,
+    HazardKind,
+    OutcomeClass,
+    Scenario,
+    SpeedTarget,
+)
+from onboard.vc.task_a import (
+    TaskA,
+)
+from onboard.vc.task_b import (
+    CONFIRMED_SECTIONS,
+    TaskB,
+)
+from onboard.vc.task_c import (
+    TaskC,
+)
+
+__all__ = [
+    "ALL_TABLES",
+    "ATO_OB_PRIORITY",
+    "CATALOGUE",
+    "CONFIRMED_SECTIONS",
+    "DECAY_CONDITIONS",
+    "FRAME_NUMBER_MODULO",
+    "FULL_EB_DELAY_S",
+    "KMH",
+    "MAX_FRAME_GAP",
+    "OPERATOR_REACTION_S",
+    "PULSED_SECTIONS",
+    "RECHARGE_S",
+    "RELAY_SWITCHING_DELAY_S",
+    "RELEASE_FRACTION",
+    "SECTIONS",
+    "SEED_HAZARDOUS_COUNTS",
+    "SEED_SCENARIO_COUNT",
+    "SEED_TIMINGS_MS",
+    "STEP_S",
+    "SURROUNDINGS_PRIORITY",
+    "TASK_A_PRIORITY",
+    "TASK_A_TRANSITIONS",
+    "TASK_B_PRIORITY",
+    "TASK_B_TRANSITIONS",
+    "TASK_C_BRAKE_TRANSITIONS",
+    "TASK_C_ETCS_TRANSITIONS",
+    "TASK_C_PRIORITY",
+    "TIME_TOLERANCE_S",
+    "ActuationStatus",
+    "AtoObResponder",
+    "AtoObResponse",
+    "AtoObStatus",
+    "BrakeState",
+    "DecayReason",
+    "Delivery",
+    "EbCondition",
+    "EmergencyBrakeValves",
+    "EtcsState",
+    "Fault",
+    "FaultyLink",
+    "Fsm",
+    "FsmCoverage",
+    "FsmTransition",
+    "Hazard",
+    "HazardKind",
+    "LinkDirection",
+    "LinkFault",
+    "LinkFaultKind",
+    "Mailbox",
+    "MessageQueue",
+    "Notification",
+    "OdometryEstimate",
+    "OperatorAction",
+    "OperatorActionKind",
+    "OutcomeClass",
+    "PipeFault",
+    "RadioRelay",
+    "RelayFault",
+    "ResponderFault",
+    "ResponderFaultKind",
+    "Scenario",
+    "ScenarioError",
+    "ScenarioResult",
+    "Section",
+    "SectionRequest",
+    "SectionResponse",
+    "SpeedTarget",
+    "StateMachine",
+    "SupervisionStatus",
+    "TachometerBoard",
+    "TachometerFault",
+    "TachometerFaultMode",
+    "TachometerFrame",
+    "TachometerOdometry",
+    "TaskA",
+    "TaskAState",
+    "TaskB",
+    "TaskBState",
+    "TaskC",
+    "TrainMotion",
+    "TransitionRule",
+    "Trigger",
+    "ValveCommand",
+    "VcConfig",
+    "VcError",
+    "VcEvent",
+    "VcEventKind",
+    "VcHardware",
+    "VcInputError",
+    "VcOutputs",
+    "VcRequest",
+    "VitalControl",
+    "corrupt_response",
+    "count_by_class",
+    "expected_response_number",
+    "format_report",
+    "run_catalogue",
+    "run_scenario",
+    "scenario",
+    "select_rule",
+    "transition_coverage",
+]

@@ -1,0 +1,388 @@
+"""Run a VC scenario in lockstep and measure it (seed 004 §4.2; DOMAIN.md §6, §7.2).
+
+:func:`run_scenario` builds the emulated hardware, a :class:`VitalControl`, an
+:class:`AtoObResponder` and a small kinematic train on a :class:`~onboard.runtime.SimClock` and
+an :class:`~onboard.runtime.Executive`, runs the scenario for its duration and returns a
+:class:`ScenarioResult`: the outcome class, and in simulated time
+
+- hazard → EB command (valves de-energised) and hazard → full EB (pipe vented, 450 ms later);
+- evidence → EB command: from the moment the evidence reached the VC (a response's arrival, a
+  tachometer frame's arrival, a deadline's expiry) to the command, the VC's own elaboration time,
+  the figure the seeds measure (A 10 ms, B 2 ms, E 12 ms, N 2 ms);
+- hazard → System Decay and evidence → System Decay.
+
+Tick order (priorities): the surroundings (train, odometry board, BTM) first, then VC Tasks B,
+C, A, then the ATO-OB double, all every 2 ms but A (40 ms).
+
+The train (ground truth, seen by the VC only through the tachometer board) follows the remote
+driver's target speed under a traction and a service-brake limit, and the EB's effort grows as
+the brake pipe vents. Its numbers are the URV's (``onboard.etcs.URV_TRAIN_DATA``) where they
+exist.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+from onboard.etcs.balises import TelegramHeader
+from onboard.etcs.values import URV_TRAIN_DATA
+from onboard.runtime import Executive, SimClock
+from onboard.runtime.clock import NS_PER_S
+from onboard.vc.config import KMH
+from onboard.vc.fsm import FsmCoverage, FsmTransition, transition_coverage
+from onboard.vc.hardware import PipeFault, RelayFault, TachometerBoard, TachometerFault
+from onboard.vc.ipc import Delivery, VcEvent, VcEventKind
+from onboard.vc.link import LinkFault
+from onboard.vc.module import TASK_B_PRIORITY, VcHardware, VitalControl
+from onboard.vc.responder import AtoObResponder, ResponderFault
+from onboard.vc.scenarios import (
+    SEED_HAZARDOUS_COUNTS,
+    SEED_SCENARIO_COUNT,
+    HazardKind,
+    OutcomeClass,
+    Scenario,
+)
+
+__all__ = [
+    "ATO_OB_PRIORITY",
+    "SEED_TIMINGS_MS",
+    "STEP_S",
+    "SURROUNDINGS_PRIORITY",
+    "ScenarioResult",
+    "TrainMotion",
+    "count_by_class",
+    "format_report",
+    "run_catalogue",
+    "run_scenario",
+]
+
+SURROUNDINGS_PRIORITY = TASK_B_PRIORITY + 10
+ATO_OB_PRIORITY = 0
+STEP_S = 0.002
+MOVING_MPS = 0.01
+"""Above this true speed the train is moving."""
+
+SEED_TIMINGS_MS: dict[str, str] = {
+    "A": "10 (+80 exchange +450 = 540)",
+    "B": "2",
+    "E": "12",
+    "N": "2",
+    "L": "6 (+80 data +450 = 536)",
+    "M": "6 (+80 data +450 = 536)",
+    "F": "2 (decay)",
+    "G": "2 (decay)",
+}
+"""The seeds' figures by letter, VC elaboration first [ms] (seed 004 §4.2, seed 001 §IV.C)."""
+
+
+class TrainMotion:
+    """The train's ground truth: a point mass following the remote driver's target speed.
+
+    Accelerations in m/s². Traction only with the EB released (valves energised, pipe charged);
+    the EB's deceleration is its full value times the pipe's pressure drop.
+    """
+
+    def __init__(
+        self,
+        *,
+        traction_mps2: float = 1.0,
+        service_brake_mps2: float = URV_TRAIN_DATA.a_brake_service_mps2,
+        emergency_brake_mps2: float = URV_TRAIN_DATA.a_brake_emergency_mps2,
+        gain_per_s: float = 1.0,
+    ) -> None:
+        self.traction_mps2 = traction_mps2
+        self.service_brake_mps2 = service_brake_mps2
+        self.emergency_brake_mps2 = emergency_brake_mps2
+        self.gain_per_s = gain_per_s
+        self.speed_mps = 0.0
+        self.distance_m = 0.0
+        self.time_s = 0.0
+
+    def advance(
+        self, now_s: float, *, target_mps: float, eb_effort: float, traction_available: bool
+    ) -> None:
+        dt_s = now_s - self.time_s
+        self.time_s = now_s
+        if dt_s <= 0:
+            return
+        demand = self.gain_per_s * (target_mps - self.speed_mps)
+        demand = min(self.traction_mps2, max(-self.service_brake_mps2, demand))
+        if not traction_available:
+            demand = min(demand, 0.0)
+        acceleration = demand - eb_effort * self.emergency_brake_mps2
+        speed = max(0.0, self.speed_mps + acceleration * dt_s)
+        self.distance_m += (self.speed_mps + speed) / 2 * dt_s
+        self.speed_mps = speed
+
+
+class _Surroundings:
+    """Everything around the VC in a scenario: the train, the odometry board, the BTM."""
+
+    def __init__(self, scenario: Scenario, hardware: VcHardware) -> None:
+        self.scenario = scenario
+        self.hardware = hardware
+        self.train = TrainMotion()
+        config = scenario.config
+        self.board = TachometerBoard(
+            metres_per_pulse=config.metres_per_pulse,
+            period_s=config.tachometer_period_s,
+            faults=[f for f in scenario.faults if isinstance(f, TachometerFault)],
+        )
+        self._targets = sorted(scenario.driver, key=lambda t: t.from_s)
+        self._telegrams = sorted(scenario.balise_telegrams)
+        self.speeds_mps: list[float] = []
+        """The true speed at each 2 ms step."""
+        self.overspeed_s: float | None = None
+
+    def target_mps(self, now_s: float) -> float:
+        target = 0.0
+        for item in self._targets:
+            if item.from_s <= now_s:
+                target = item.speed_kmh * KMH
+        return target
+
+    def step_ns(self, release_ns: int) -> None:
+        now_s = release_ns / NS_PER_S
+        valves, relay = self.hardware.valves, self.hardware.relay
+        before_mps = self.train.speed_mps
+        self.train.advance(
+            now_s,
+            target_mps=self.target_mps(now_s),
+            eb_effort=valves.brake_effort(now_s),
+            traction_available=valves.eb_released(now_s),
+        )
+        speed = self.train.speed_mps
+        self.speeds_mps.append(speed)
+        limit = self.scenario.config.speed_limit_etcs_isolated_mps
+        if self.overspeed_s is None and speed > limit >= before_mps and not relay.inserted(now_s):
+            self.overspeed_s = now_s - STEP_S * (speed - limit) / (speed - before_mps)
+        frame = self.board.poll(now_s, self.train.distance_m)
+        if frame is not None:
+            self.hardware.tachometer_frames.put(Delivery(frame, now_s))
+        while self._telegrams and self._telegrams[0][0] <= now_s:
+            _, group = self._telegrams.pop(0)
+            header = TelegramHeader(nid_bg=group, q_link=1)
+            self.hardware.balise_telegrams.put(Delivery(header, now_s))
+
+    def speed_at(self, time_s: float) -> float:
+        index = min(len(self.speeds_mps) - 1, max(0, round(time_s / STEP_S)))
+        return self.speeds_mps[index] if self.speeds_mps else 0.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScenarioResult:
+    """What a scenario run did, in simulated time [s]."""
+
+    key: str
+    title: str
+    expected: OutcomeClass
+    outcome: OutcomeClass
+    hazard_s: float | None
+    evidence_s: float | None
+    """When the first evidence after the hazard reached the VC."""
+    eb_command_s: float | None
+    """The first EB command (valves de-energised) at or after the hazard."""
+    full_eb_s: float | None
+    decay_s: float | None
+    decay_evidence_s: float | None
+    """When the evidence behind System Decay reached the VC."""
+    rearmed_s: float | None
+    """The last EB rearm verified after the first EB command."""
+    speed_at_intervention_kmh: float | None
+    decay_reasons: tuple[str, ...]
+    events: tuple[VcEvent, ...]
+    transitions: tuple[FsmTransition, ...]
+
+    @property
+    def passed(self) -> bool:
+        return self.outcome is self.expected
+
+    def _since(self, start: float | None, end: float | None) -> float | None:
+        return None if start is None or end is None else end - start
+
+    @property
+    def hazard_to_eb_command_s(self) -> float | None:
+        return self._since(self.hazard_s, self.eb_command_s)
+
+    @property
+    def hazard_to_full_eb_s(self) -> float | None:
+        return self._since(self.hazard_s, self.full_eb_s)
+
+    @property
+    def evidence_to_eb_command_s(self) -> float | None:
+        return self._since(self.evidence_s, self.eb_command_s)
+
+    @property
+    def hazard_to_decay_s(self) -> float | None:
+        return self._since(self.hazard_s, self.decay_s)
+
+    @property
+    def evidence_to_decay_s(self) -> float | None:
+        return self._since(self.decay_evidence_s, self.decay_s)
+
+
+def _hazard_s(scenario: Scenario, vc: VitalControl, surroundings: _Surroundings) -> float | None:
+    hazard = scenario.hazard
+    if hazard is None:
+        return None
+    if hazard.kind is HazardKind.AT:
+        return hazard.at_s
+    if hazard.kind is HazardKind.OVERSPEED:
+        return surroundings.overspeed_s
+    if hazard.kind is HazardKind.RELAY_COMMAND:
+        commands = vc.hardware.relay.commands
+        return commands[0][0] if commands else None
+    rearms = [
+        c.time_s for c in vc.hardware.valves.commands if c.energised and c.time_s >= hazard.at_s
+    ]
+    return rearms[0] if rearms else None
+
+
+def _first(events: Iterable[VcEvent], kinds: set[VcEventKind], after_s: float) -> VcEvent | None:
+    return next((e for e in events if e.kind in kinds and e.time_s >= after_s), None)
+
+
+def _classify(
+    eb_moving: bool, decay_s: float | None, eb_commands: Sequence[float], moving_at_decay: bool
+) -> OutcomeClass:
+    if decay_s is not None:
+        if eb_moving or moving_at_decay:
+            return OutcomeClass.EB_THEN_DECAY
+        return OutcomeClass.DECAY_AT_STANDSTILL
+    return OutcomeClass.EB_SAFE_RECOVERY if eb_commands else OutcomeClass.NONE
+
+
+def run_scenario(scenario: Scenario) -> ScenarioResult:
+    """Run ``scenario`` in lockstep for its duration; measure and classify it."""
+    faults = scenario.faults
+    hardware = VcHardware.emulated(
+        link_delay_s=scenario.link_delay_s,
+        link_faults=[f for f in faults if isinstance(f, LinkFault)],
+        venting_s=scenario.full_eb_delay_s,
+        pipe_faults=[f for f in faults if isinstance(f, PipeFault)],
+        etcs_inserted=scenario.etcs_inserted_at_start,
+        relay_faults=[f for f in faults if isinstance(f, RelayFault)],
+    )
+    vc = VitalControl(hardware, config=scenario.config)
+    responder = AtoObResponder(
+        hardware.request_link,
+        hardware.response_link,
+        sequence_modulo=scenario.config.sequence_modulo,
+        auto_confirm_rearm=scenario.auto_confirm_rearm,
+        actions=scenario.operator,
+        faults=[f for f in faults if isinstance(f, ResponderFault)],
+    )
+    surroundings = _Surroundings(scenario, hardware)
+    executive = Executive(SimClock())
+    executive.add_task(
+        "surroundings", surroundings.step_ns, period_s=STEP_S, priority=SURROUNDINGS_PRIORITY
+    )
+    vc.register(executive)
+    executive.add_task("ato_ob", responder.step_ns, period_s=STEP_S, priority=ATO_OB_PRIORITY)
+    executive.run_until(round(scenario.duration_s * NS_PER_S))
+    return _result(scenario, vc, surroundings)
+
+
+def _result(scenario: Scenario, vc: VitalControl, surroundings: _Surroundings) -> ScenarioResult:
+    events = vc.events
+    valves = vc.hardware.valves
+    eb_commands = [c for c in valves.commands if not c.energised]
+    eb_moving = any(surroundings.speed_at(c.time_s) > MOVING_MPS for c in eb_commands)
+    hazard_s = _hazard_s(scenario, vc, surroundings)
+    after_s = hazard_s if hazard_s is not None else math.inf
+    evidence = _first(events, {VcEventKind.EB_CONDITION, VcEventKind.SYSTEM_DECAY}, after_s)
+    command = next((c for c in eb_commands if c.time_s >= after_s), None)
+    decay = _first(events, {VcEventKind.SYSTEM_DECAY}, 0.0)
+    moving_at_decay = decay is not None and surroundings.speed_at(decay.time_s) > MOVING_MPS
+    rearms = [
+        e.time_s
+        for e in events
+        if e.kind is VcEventKind.EB_REARMED and eb_commands and e.time_s > eb_commands[0].time_s
+    ]
+    intervention_s = command.time_s if command else (decay.time_s if decay else None)
+    return ScenarioResult(
+        key=scenario.key,
+        title=scenario.title,
+        expected=scenario.expected,
+        outcome=_classify(
+            eb_moving,
+            decay.time_s if decay else None,
+            [c.time_s for c in eb_commands],
+            moving_at_decay,
+        ),
+        hazard_s=hazard_s,
+        evidence_s=evidence.evidence_s if evidence else None,
+        eb_command_s=command.time_s if command else None,
+        full_eb_s=valves.full_emergency_brake_s(command) if command else None,
+        decay_s=decay.time_s if decay else None,
+        decay_evidence_s=decay.evidence_s if decay else None,
+        rearmed_s=rearms[-1] if rearms else None,
+        speed_at_intervention_kmh=(
+            surroundings.speed_at(intervention_s) / KMH if intervention_s is not None else None
+        ),
+        decay_reasons=vc.outputs.decay_reasons,
+        events=tuple(events),
+        transitions=tuple(vc.transitions),
+    )
+
+
+def run_catalogue(scenarios: Iterable[Scenario]) -> tuple[ScenarioResult, ...]:
+    """Run each scenario; the results in the same order."""
+    return tuple(run_scenario(s) for s in scenarios)
+
+
+def count_by_class(results: Iterable[ScenarioResult]) -> dict[OutcomeClass, int]:
+    counts = dict.fromkeys(OutcomeClass, 0)
+    for result in results:
+        counts[result.outcome] += 1
+    return counts
+
+
+def _ms(value: float | None) -> str:
+    return "—" if value is None else f"{value * 1000:.0f}"
+
+
+def format_report(results: Sequence[ScenarioResult]) -> str:
+    """Counts by class beside the seeds', the timing table, and the FSMs' coverage, as text."""
+    counts = count_by_class(results)
+    hazardous = sum(counts[c] for c in SEED_HAZARDOUS_COUNTS)
+    lines = [
+        f"VC scenario catalogue: {len(results)} scenarios (seeds: {SEED_SCENARIO_COUNT}), "
+        f"{hazardous} hazardous (seeds: {sum(SEED_HAZARDOUS_COUNTS.values())})",
+    ]
+    for outcome in OutcomeClass:
+        seed = SEED_HAZARDOUS_COUNTS.get(outcome, SEED_SCENARIO_COUNT - 23)
+        lines.append(f"  {outcome.value:<22} {counts[outcome]:>3}   seeds {seed:>3}")
+    lines.append("")
+    lines.append(
+        f"{'scenario':<26}{'class':<21}{'v km/h':>7}{'haz→EB':>8}{'evid→EB':>8}"
+        f"{'haz→full':>9}{'haz→decay':>10}{'evid→decay':>11}  seeds [ms]"
+    )
+    for result in results:
+        if result.outcome is OutcomeClass.NONE:
+            continue
+        speed = result.speed_at_intervention_kmh
+        braking = result.outcome is not OutcomeClass.DECAY_AT_STANDSTILL
+        lines.append(
+            f"{result.key:<26}{result.outcome.value:<21}"
+            f"{'—' if speed is None else f'{speed:.1f}':>7}"
+            f"{_ms(result.hazard_to_eb_command_s if braking else None):>8}"
+            f"{_ms(result.evidence_to_eb_command_s if braking else None):>8}"
+            f"{_ms(result.hazard_to_full_eb_s if braking else None):>9}"
+            f"{_ms(result.hazard_to_decay_s):>10}{_ms(result.evidence_to_decay_s):>11}"
+            f"  {SEED_TIMINGS_MS.get(result.key, '')}"
+        )
+    lines.append("")
+    coverage = transition_coverage(t for r in results for t in r.transitions)
+    lines.extend(_coverage_line(item) for item in coverage.values())
+    return "\n".join(lines)
+
+
+def _coverage_line(item: FsmCoverage) -> str:
+    missing = ", ".join(item.rows_missing + item.pairs_missing) or "none missing"
+    return (
+        f"FSM {item.fsm.value:<8} rows {item.rows_covered:.0%} of {item.rows_total}, "
+        f"(row, source) pairs {item.pairs_covered:.0%} of {item.pairs_total}: {missing}"
+    )

@@ -1,0 +1,321 @@
+"""Task B, the supervisor (seed 004 §2.4, Table 3; DOMAIN.md §7.2): every 2 ms, first of all.
+
+Each cycle Task B
+
+1. takes the requests Task A sent (to know what each response must carry);
+2. checks the ATO-OB's responses: each must match an outstanding request by its ATO Vitality
+   number, arrive within the 40 ms + 4 ms window, carry exactly the expected sequence numbers
+   (:func:`~onboard.vc.messages.expected_response_number`) and the status OK; it reads the
+   operator's answers (EB request, vigilance, ETCS and rearm confirmations) from valid
+   responses only;
+3. checks the deadlines: a request not answered within the window (vitality), a vigilance
+   request not confirmed within its timeout;
+4. updates the tachometer odometry (:mod:`onboard.vc.odometry`) and re-reads the EB and ETCS
+   digital inputs and the BTM;
+5. raises the EB flag on the six conditions of seed 004, System Decay on 2, 3 and 4, and
+   publishes a :class:`~onboard.vc.ipc.SupervisionStatus` for Tasks C and A.
+
+The flag stays up until the hazard has gone with the train at standstill and the EB applied
+(row B3); the EB itself stays applied until Task C rearms it on the operator's confirmation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from onboard.etcs.balises import TelegramHeader
+from onboard.vc.config import TIME_TOLERANCE_S, VcConfig
+from onboard.vc.fsm import (
+    TASK_B_TRANSITIONS,
+    BrakeState,
+    StateMachine,
+    TaskBState,
+    Trigger,
+)
+from onboard.vc.hardware import TachometerFrame
+from onboard.vc.ipc import (
+    ActuationStatus,
+    Delivery,
+    Mailbox,
+    MessageQueue,
+    SupervisionStatus,
+    VcEvent,
+    VcEventKind,
+)
+from onboard.vc.link import FaultyLink
+from onboard.vc.messages import (
+    DECAY_CONDITIONS,
+    SECTIONS,
+    AtoObResponse,
+    AtoObStatus,
+    DecayReason,
+    EbCondition,
+    Section,
+    VcRequest,
+    expected_response_number,
+)
+from onboard.vc.odometry import OdometryEstimate, TachometerOdometry
+
+__all__ = ["CONFIRMED_SECTIONS", "TaskB"]
+
+CONFIRMED_SECTIONS = (
+    Section.OPERATOR_VIGILANCE,
+    Section.ETCS_ISOLATION_CONFIRMATION,
+    Section.ETCS_INSERTION_CONFIRMATION,
+    Section.EB_REARM_CONFIRMATION,
+)
+"""The standing sections whose answer is a confirmation Task B passes on."""
+
+_C = EbCondition
+
+
+@dataclass(frozen=True, slots=True)
+class _Outstanding:
+    request: VcRequest
+    deadline_s: float
+
+
+class TaskB:
+    """Task B of one VC.
+
+    Parameters
+    ----------
+    response_link
+        The link's ATO-OB → VC direction, read here only.
+    requests_sent
+        Task A's copies of the requests it sent.
+    tachometer_frames, balise_telegrams
+        The odometry board's frames and the BTM's telegram headers, with their arrival.
+    read_eb_released, read_etcs_inserted
+        The EB and ETCS digital inputs.
+    actuation
+        Task C's latest status.
+    status
+        Where Task B posts its own (a new mailbox by default).
+    """
+
+    def __init__(
+        self,
+        config: VcConfig,
+        *,
+        response_link: FaultyLink[AtoObResponse],
+        requests_sent: MessageQueue[VcRequest],
+        tachometer_frames: MessageQueue[Delivery[TachometerFrame]],
+        balise_telegrams: MessageQueue[Delivery[TelegramHeader]],
+        read_eb_released: Callable[[float], bool],
+        read_etcs_inserted: Callable[[float], bool],
+        actuation: Mailbox[ActuationStatus],
+        status: Mailbox[SupervisionStatus] | None = None,
+        start_s: float = 0.0,
+    ) -> None:
+        self.config = config
+        self.status = status if status is not None else Mailbox[SupervisionStatus]()
+        self.fsm = StateMachine(TASK_B_TRANSITIONS, TaskBState.MONITORING)
+        self.events: list[VcEvent] = []
+        self._response_link = response_link
+        self._requests_sent = requests_sent
+        self._tachometer_frames = tachometer_frames
+        self._balise_telegrams = balise_telegrams
+        self._read_eb_released = read_eb_released
+        self._read_etcs_inserted = read_etcs_inserted
+        self._actuation = actuation
+        self._odometry = TachometerOdometry(config, start_s=start_s)
+        self._outstanding: dict[int, _Outstanding] = {}
+        self._current: dict[Section, int | None] = dict.fromkeys(CONFIRMED_SECTIONS)
+        self._confirmed: dict[Section, int | None] = dict.fromkeys(CONFIRMED_SECTIONS)
+        self._vigilance_deadline_s: float | None = None
+        self._isolated_since_s: float | None = None
+        self._previous_live: frozenset[EbCondition] = frozenset()
+        self._eb_conditions: set[EbCondition] = set()
+        self._decay_reasons: list[DecayReason] = []
+        self._last_balise_header: TelegramHeader | None = None
+        # Conditions found this cycle, with their evidence time.
+        self._found: dict[EbCondition, float] = {}
+        self._found_decays: list[tuple[DecayReason, float]] = []
+
+    # -- requests and responses ------------------------------------------------------------
+
+    def _register(self, request: VcRequest) -> None:
+        modulo = self.config.sequence_modulo
+        vitality = request.section(Section.ATO_VITALITY).sequence_number
+        deadline_s = request.sent_s + self.config.exchange_window_s
+        self._outstanding[(vitality + 1) % modulo] = _Outstanding(request, deadline_s)
+        for section in CONFIRMED_SECTIONS:
+            item = request.section(section)
+            number = item.sequence_number if item.request_flag else None
+            if number != self._current[section]:
+                self._confirmed[section] = None
+            self._current[section] = number
+        vigilance = self._current[Section.OPERATOR_VIGILANCE]
+        if vigilance is None:
+            self._vigilance_deadline_s = None
+        elif self._confirmed[Section.OPERATOR_VIGILANCE] is None and (
+            self._vigilance_deadline_s is None
+        ):
+            self._vigilance_deadline_s = request.sent_s + self.config.vigilance_timeout_s
+
+    def _decay(self, reason: DecayReason, condition: EbCondition, evidence_s: float) -> None:
+        self._found_decays.append((reason, evidence_s))
+        self._found.setdefault(condition, evidence_s)
+
+    def _check_response(self, delivery: Delivery[AtoObResponse], now_s: float) -> None:
+        response, arrived_s = delivery.message, delivery.arrived_s
+        vitality = response.section(Section.ATO_VITALITY).sequence_number
+        outstanding = self._outstanding.pop(vitality, None)
+        if outstanding is None:
+            # A number no outstanding request expects: stale, replayed or corrupted.
+            self._decay(DecayReason.RESPONSE_NOT_VALID, _C.RESPONSE_NOT_VALID, arrived_s)
+            return
+        if now_s > outstanding.deadline_s + TIME_TOLERANCE_S:
+            self._decay(
+                DecayReason.VITALITY_TIMEOUT, _C.CONFIRMATION_TIMEOUT, outstanding.deadline_s
+            )
+            return
+        request = outstanding.request
+        modulo = self.config.sequence_modulo
+        for section in SECTIONS:
+            expected = expected_response_number(request.section(section), modulo)
+            if response.section(section).sequence_number != expected:
+                self._decay(DecayReason.RESPONSE_NOT_VALID, _C.RESPONSE_NOT_VALID, arrived_s)
+                return
+        if response.status is AtoObStatus.FAIL:
+            self._decay(DecayReason.ATO_OB_FAIL, _C.ATO_OB_FAIL, arrived_s)
+        eb_release = Section.EB_RELEASE_CONFIRMATION
+        if request.section(eb_release).request_flag and response.section(eb_release).answer:
+            self._found.setdefault(_C.OPERATOR_REQUEST, arrived_s)
+        for section in CONFIRMED_SECTIONS:
+            asked = request.section(section)
+            if asked.request_flag and response.section(section).answer:
+                self._confirmed[section] = asked.sequence_number
+                if section is Section.OPERATOR_VIGILANCE:
+                    self._vigilance_deadline_s = None
+
+    def _check_deadlines(self, now_s: float) -> None:
+        for key, outstanding in list(self._outstanding.items()):
+            if now_s > outstanding.deadline_s + TIME_TOLERANCE_S:
+                del self._outstanding[key]
+                self._decay(
+                    DecayReason.VITALITY_TIMEOUT, _C.CONFIRMATION_TIMEOUT, outstanding.deadline_s
+                )
+        deadline_s = self._vigilance_deadline_s
+        if deadline_s is not None and now_s > deadline_s + TIME_TOLERANCE_S:
+            self._vigilance_deadline_s = None
+            self._decay(DecayReason.VIGILANCE_TIMEOUT, _C.CONFIRMATION_TIMEOUT, deadline_s)
+
+    # -- odometry conditions ---------------------------------------------------------------
+
+    def _check_isolated_odometry(self, now_s: float, odometry: OdometryEstimate) -> bool:
+        isolated = not self._read_etcs_inserted(now_s)
+        if not isolated:
+            self._isolated_since_s = None
+            return False
+        if self._isolated_since_s is None:
+            self._isolated_since_s = now_s
+        since_s = self._isolated_since_s
+        if not odometry.efficient:
+            evidence_s = max(since_s, odometry.not_efficient_since_s or since_s)
+            self._found.setdefault(_C.ODOMETRY_NOT_EFFICIENT, evidence_s)
+        elif (odometry.speed_mps or 0.0) > self.config.speed_limit_etcs_isolated_mps:
+            evidence_s = max(since_s, odometry.speed_updated_s or since_s)
+            self._found.setdefault(_C.OVERSPEED_ETCS_ISOLATED, evidence_s)
+        return True
+
+    # -- the cycle -------------------------------------------------------------------------
+
+    def step(self, now_s: float) -> SupervisionStatus:
+        """One cycle at ``now_s``; returns (and posts) the status."""
+        self._found = {}
+        self._found_decays = []
+        for request in self._requests_sent.take_all():
+            self._register(request)
+        for delivery in self._response_link.receive(now_s):
+            self._check_response(delivery, now_s)
+        self._check_deadlines(now_s)
+        odometry = self._odometry.update(now_s, self._tachometer_frames.take_all())
+        isolated = self._check_isolated_odometry(now_s, odometry)
+        headers = self._balise_telegrams.take_all()
+        if headers:
+            self._last_balise_header = headers[-1].message
+        self._record(now_s)
+        self._transition(now_s, odometry)
+        return self._publish(now_s, odometry, isolated)
+
+    def _record(self, now_s: float) -> None:
+        live = frozenset(self._found)
+        for condition in sorted(live - self._previous_live):
+            self.events.append(
+                VcEvent(
+                    time_s=now_s,
+                    task="B",
+                    kind=VcEventKind.EB_CONDITION,
+                    detail=f"{int(condition)} {condition.name.lower()}",
+                    evidence_s=self._found[condition],
+                )
+            )
+        for reason, evidence_s in self._found_decays:
+            if reason not in self._decay_reasons:
+                if not self._decay_reasons:
+                    self.events.append(
+                        VcEvent(
+                            time_s=now_s,
+                            task="B",
+                            kind=VcEventKind.SYSTEM_DECAY,
+                            detail=reason.value,
+                            evidence_s=evidence_s,
+                        )
+                    )
+                self._decay_reasons.append(reason)
+        self._previous_live = live
+
+    def _transition(self, now_s: float, odometry: OdometryEstimate) -> None:
+        live = self._previous_live
+        triggers: set[Trigger] = set()
+        if live & DECAY_CONDITIONS:
+            triggers.add(Trigger.DECAY_CONDITION)
+        if live:
+            triggers.add(Trigger.EB_CONDITION)
+        actuation = self._actuation.read()
+        if (
+            not live
+            and odometry.standstill
+            and actuation is not None
+            and actuation.brake_state is BrakeState.STANDSTILL
+        ):
+            triggers.add(Trigger.HAZARD_CLEARED_AT_STANDSTILL)
+        rule = self.fsm.fire(triggers, now_s)
+        if rule is not None and rule.target is TaskBState.MONITORING:
+            self._eb_conditions.clear()
+        if self.fsm.state is not TaskBState.MONITORING:
+            self._eb_conditions |= live
+
+    def _publish(
+        self, now_s: float, odometry: OdometryEstimate, isolated: bool
+    ) -> SupervisionStatus:
+        confirmed = {
+            section: number if number == self._current[section] else None
+            for section, number in self._confirmed.items()
+        }
+        state = self.fsm.state
+        status = SupervisionStatus(
+            time_s=now_s,
+            state=state,
+            eb_flag=state is not TaskBState.MONITORING,
+            eb_conditions=frozenset(self._eb_conditions),
+            live_conditions=self._previous_live,
+            system_decay=state is TaskBState.DECAYED,
+            decay_reasons=tuple(self._decay_reasons),
+            standstill=odometry.standstill,
+            odometry_efficient=odometry.efficient,
+            speed_mps=odometry.speed_mps,
+            position_m=odometry.position_m,
+            etcs_isolated=isolated,
+            eb_released=self._read_eb_released(now_s),
+            vigilance_confirmed_number=confirmed[Section.OPERATOR_VIGILANCE],
+            etcs_isolation_confirmed_number=confirmed[Section.ETCS_ISOLATION_CONFIRMATION],
+            etcs_insertion_confirmed_number=confirmed[Section.ETCS_INSERTION_CONFIRMATION],
+            eb_rearm_confirmed_number=confirmed[Section.EB_REARM_CONFIRMATION],
+            last_balise_header=self._last_balise_header,
+        )
+        self.status.post(status)
+        return status
