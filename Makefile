@@ -43,6 +43,7 @@ bench: $(VENV)/.installed-test
 	$(BIN)/ato bench trackdb
 	$(BIN)/ato bench plant
 	$(BIN)/ato bench adf
+	$(BIN)/ato bench vc
 
 clean:
 	rm -rf $(VENV) .ato .mypy_cache .pytest_cache .ruff_cache

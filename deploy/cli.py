@@ -26,6 +26,8 @@ bench_app = typer.Typer(help="Benchmarks that print numbers.", no_args_is_help=T
 app.add_typer(bench_app, name="bench")
 trackdb_app = typer.Typer(help="Track data in and out of the database.", no_args_is_help=True)
 app.add_typer(trackdb_app, name="trackdb")
+vc_app = typer.Typer(help="Vital Control tools.", no_args_is_help=True)
+app.add_typer(vc_app, name="vc")
 
 ZenohOption = Annotated[str, typer.Option("--zenoh", help="Zenoh router endpoint to connect to.")]
 DatabaseOption = Annotated[
@@ -161,6 +163,52 @@ def bench_adf(
     from deploy.bench_adf import bench_adf as run
 
     run(plots_dir=plots)
+
+
+@bench_app.command("vc")
+def bench_vc(
+    seconds: Annotated[float, typer.Option(help="Real-time run length [s].")] = 60.0,
+) -> None:
+    """VC tasks A/B/C in real time: execution time, lateness at 2 ms, deadline misses."""
+    from deploy.bench_vc import bench_vc as run
+
+    if seconds <= 0:
+        raise typer.BadParameter("--seconds must be positive")
+    run(seconds=seconds)
+
+
+@vc_app.command("replay")
+def vc_replay(
+    file: Annotated[Path, typer.Argument(help="A VC datalog (JSON Lines).")],
+    kind: Annotated[
+        list[str] | None, typer.Option("--kind", help="Only records of this kind (repeatable).")
+    ] = None,
+) -> None:
+    """Print a VC datalog's records; a torn last line is reported, corruption exits 1."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from onboard.vc.datalog import DatalogCorruptError, read_datalog
+
+    try:
+        replay = read_datalog(file)
+    except FileNotFoundError as exc:
+        typer.echo(f"{file}: no such datalog", err=True)
+        raise typer.Exit(code=1) from exc
+    except (DatalogCorruptError, OSError) as exc:
+        typer.echo(f"corrupt datalog: {exc}", err=True)
+        raise typer.Exit(code=1) from exc
+    records = [r for r in replay.records if not kind or r.kind in kind]
+    table = Table(title=f"VC datalog {file.name}: {len(records)} of {len(replay.records)} records")
+    for column in ("seq", "time [s]", "source", "kind", "payload"):
+        table.add_column(column, justify="right" if column in ("seq", "time [s]") else "left")
+    for record in records:
+        payload = ", ".join(f"{key}={value}" for key, value in record.payload.items())
+        table.add_row(str(record.seq), f"{record.time_s:.3f}", record.source, record.kind, payload)
+    console = Console(width=120)
+    console.print(table)
+    if replay.torn_last_line is not None:
+        console.print(f"torn last line ignored ({len(replay.torn_last_line)} characters)")
 
 
 @bench_app.command("zenoh")

@@ -11,6 +11,8 @@ be safe. Three tasks on the executive, sharing no mutable state:
   deadlines, the odometry (:mod:`~onboard.vc.odometry`) and the digital inputs, raises the EB
   flag and System Decay;
 - :mod:`~onboard.vc.task_c`: Task C (2 ms, after B), drives the valves and the relay;
+- :mod:`~onboard.vc.redundancy`: two replicas in 2-out-of-2 and their watchdogs;
+  :mod:`~onboard.vc.datalog`: the black box (JSON Lines) and its reader;
 - :mod:`~onboard.vc.fsm`: their transition tables; :mod:`~onboard.vc.ipc`: their mailboxes and
   messages; :mod:`~onboard.vc.module`: :class:`VitalControl`, which wires and registers them.
 
@@ -42,6 +44,15 @@ from onboard.vc.config import (
     KMH,
     TIME_TOLERANCE_S,
     VcConfig,
+)
+from onboard.vc.datalog import (
+    DATALOG_PRIORITY,
+    Datalog,
+    DatalogCorruptError,
+    DatalogRecord,
+    DatalogRecorder,
+    DatalogReplay,
+    read_datalog,
 )
 from onboard.vc.fsm import (
     ALL_TABLES,
@@ -122,6 +133,17 @@ from onboard.vc.odometry import (
     OdometryEstimate,
     TachometerOdometry,
 )
+from onboard.vc.redundancy import (
+    VOTER_PRIORITY,
+    PairEvent,
+    PairEventKind,
+    RedundancyConfig,
+    ReplicaFault,
+    ReplicaFaultKind,
+    ReplicaView,
+    TwoOutOfTwo,
+    Watchdog,
+)
 from onboard.vc.responder import (
     OPERATOR_REACTION_S,
     AtoObResponder,
@@ -168,6 +190,7 @@ __all__ = [
     "ATO_OB_PRIORITY",
     "CATALOGUE",
     "CONFIRMED_SECTIONS",
+    "DATALOG_PRIORITY",
     "DECAY_CONDITIONS",
     "FRAME_NUMBER_MODULO",
     "FULL_EB_DELAY_S",
@@ -192,11 +215,17 @@ __all__ = [
     "TASK_C_ETCS_TRANSITIONS",
     "TASK_C_PRIORITY",
     "TIME_TOLERANCE_S",
+    "VOTER_PRIORITY",
     "ActuationStatus",
     "AtoObResponder",
     "AtoObResponse",
     "AtoObStatus",
     "BrakeState",
+    "Datalog",
+    "DatalogCorruptError",
+    "DatalogRecord",
+    "DatalogRecorder",
+    "DatalogReplay",
     "DecayReason",
     "Delivery",
     "EbCondition",
@@ -219,9 +248,15 @@ __all__ = [
     "OperatorAction",
     "OperatorActionKind",
     "OutcomeClass",
+    "PairEvent",
+    "PairEventKind",
     "PipeFault",
     "RadioRelay",
+    "RedundancyConfig",
     "RelayFault",
+    "ReplicaFault",
+    "ReplicaFaultKind",
+    "ReplicaView",
     "ResponderFault",
     "ResponderFaultKind",
     "Scenario",
@@ -246,6 +281,7 @@ __all__ = [
     "TrainMotion",
     "TransitionRule",
     "Trigger",
+    "TwoOutOfTwo",
     "ValveCommand",
     "VcConfig",
     "VcError",
@@ -256,10 +292,12 @@ __all__ = [
     "VcOutputs",
     "VcRequest",
     "VitalControl",
+    "Watchdog",
     "corrupt_response",
     "count_by_class",
     "expected_response_number",
     "format_report",
+    "read_datalog",
     "run_catalogue",
     "run_scenario",
     "scenario",

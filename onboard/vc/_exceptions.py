@@ -6,8 +6,10 @@
     ├── VcInputError (ValueError)        a bad call: a non-finite or negative duration, time
     │                                    going back, a message with the wrong number of
     │                                    sections or a sequence number out of range
-    └── ScenarioError (ValueError)       a scenario that cannot be run: a fault window that
-                                         ends before it starts, an action after the run
+    ├── ScenarioError (ValueError)       a scenario that cannot be run: a fault window that
+    │                                    ends before it starts, an action after the run
+    └── DatalogCorruptError (ValueError) a datalog line other than the last is not a record
+                                         (defined in :mod:`onboard.vc.datalog`)
 
 The tasks themselves never raise on valid inputs: a hazard is an answer (the EB flag, System
 Decay), not an exception, so each cycle of Task A, B and C always yields its outputs.

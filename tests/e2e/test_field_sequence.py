@@ -171,8 +171,14 @@ def test_the_seed_000_field_sequence_on_bologna_ring(
             assert stack.etcs.service_brake_interventions == 0
             assert stack.etcs.emergency_brake_interventions == 0
             assert wait_for(lambda: any(e.code == "journey.accepted" for e in vehicle.events))
-            status = client.get("/api/v1/vehicles/URV1", headers=headers).json()["status"]
-            assert status["ato_state"] == "NA" and status["journey_id"] == "field-test"
+            vehicle.node.run(1.0)  # the next status reports carry the end of journey
+
+            def reported() -> dict[str, Any]:
+                vehicle_json = client.get("/api/v1/vehicles/URV1", headers=headers).json()
+                return dict(vehicle_json["status"])
+
+            assert wait_for(lambda: reported()["ato_state"] == "NA")
+            assert reported()["journey_id"] == "field-test"
         finally:
             vehicle.close()
 
