@@ -44,6 +44,7 @@ bench: $(VENV)/.installed-test
 	$(BIN)/ato bench plant
 	$(BIN)/ato bench adf
 	$(BIN)/ato bench vc
+	$(BIN)/ato bench sfa
 
 clean:
 	rm -rf $(VENV) .ato .mypy_cache .pytest_cache .ruff_cache

@@ -1,12 +1,17 @@
-"""``ato bench vc``: the Vital Control's three tasks in real time (DOMAIN.md §7.2, issue 7).
+"""``ato bench vc``: the Vital Control's three tasks, their cost and their timeliness (issue 7).
 
-Tasks A, B and C of one :class:`~onboard.vc.VitalControl` run on a
-:class:`~onboard.runtime.RealTimeClock` at speed 1 for ``seconds`` (60 by default), with the
+Tasks A, B and C of one :class:`~onboard.vc.VitalControl` run with the
 :class:`~onboard.vc.AtoObResponder` double answering and a train standing still feeding the
-tachometer board. For each task: execution time (median, p99, max, runs), lateness of the
-release against wall time (p50, p99, max), and deadline misses: lateness + execution time over
-the 2 ms deadline (the seeds' deadline for all three, though A's period is 40 ms). The seeds
-measured WCETs of 20/24/31 µs on their target; ours are Python on a desktop OS.
+tachometer board:
+
+1. in lockstep (:class:`~onboard.runtime.SimClock`) for 10⁶ runs of Task B (2000 s simulated):
+   execution time per task (median, p99, max), which does not depend on pacing;
+2. in real time (:class:`~onboard.runtime.RealTimeClock`, speed 1) for ``seconds`` (60 by
+   default), once sleeping until each release and once polling the clock for its last 500 µs:
+   lateness of each release against wall time (p50, p99, max) and deadline misses (lateness +
+   execution time over the 2 ms deadline, the seeds' deadline for all three).
+
+The seeds measured WCETs of 20/24/31 µs on their target; ours are Python on a desktop OS.
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ from dataclasses import dataclass, field, replace
 from rich.console import Console
 from rich.table import Table
 
-from onboard.runtime import Executive, RealTimeClock
+from onboard.runtime import Clock, Executive, RealTimeClock, SimClock
 from onboard.runtime.clock import NS_PER_S
 from onboard.runtime.executive import StepFunction
 from onboard.vc import (
@@ -68,7 +73,7 @@ class _StandingTrain:
             self.hardware.tachometer_frames.put(Delivery(frame, now_s))
 
 
-def _instrument(executive: Executive, clock: RealTimeClock) -> dict[str, TaskTiming]:
+def _instrument(executive: Executive, clock: Clock) -> dict[str, TaskTiming]:
     """Wrap the VC tasks' bodies to sample their lateness and execution time."""
     timings = {name: TaskTiming() for name in VC_TASKS}
     deadline_ns = round(DEADLINE_S * NS_PER_S)
@@ -91,11 +96,10 @@ def _instrument(executive: Executive, clock: RealTimeClock) -> dict[str, TaskTim
     return timings
 
 
-def bench_vc(*, seconds: float = 60.0, width: int = 130) -> dict[str, TaskTiming]:
-    """Run the VC in real time for ``seconds``, print the table, return the samples."""
+def _run(clock: Clock, seconds: float) -> tuple[dict[str, TaskTiming], VitalControl, float]:
+    """One VC, its ATO-OB double and a standing train for ``seconds`` of ``clock``'s time."""
     hardware = VcHardware.emulated()
     vc = VitalControl(hardware)
-    clock = RealTimeClock(1.0)
     executive = Executive(clock)
     executive.add_task("train", _StandingTrain(hardware).step_ns, period_s=0.002, priority=40)
     vc.register(executive)
@@ -104,28 +108,56 @@ def bench_vc(*, seconds: float = 60.0, width: int = 130) -> dict[str, TaskTiming
     timings = _instrument(executive, clock)
     started = time.perf_counter()
     executive.run_for(seconds)
-    wall_s = time.perf_counter() - started
+    return timings, vc, time.perf_counter() - started
 
-    table = Table(title=f"Vital Control in real time: {seconds:g} s simulated, {wall_s:.1f} s wall")
-    columns = ("task", "period", "runs", "exec median", "exec p99", "exec max",
-               "late p50", "late p99", "late max", "deadline misses")  # fmt: skip
+
+def _table(title: str, timings: dict[str, TaskTiming], *, lateness: bool) -> Table:
+    table = Table(title=title)
+    columns = ["task", "runs", "exec median", "exec p99", "exec max"]
+    if lateness:
+        columns += ["late p50", "late p99", "late max", "deadline misses"]
     for column in columns:
         table.add_column(column, justify="left" if column == "task" else "right")
     for name, timing in timings.items():
-        us = [
-            _percentile(timing.execution_ns, 0.5), _percentile(timing.execution_ns, 0.99),
-            float(max(timing.execution_ns, default=0)), _percentile(timing.lateness_ns, 0.5),
-            _percentile(timing.lateness_ns, 0.99), float(max(timing.lateness_ns, default=0)),
-        ]  # fmt: skip
-        table.add_row(
-            name, f"{executive.tasks[name].period_ns / 1e6:g} ms", str(timing.runs),
-            *(f"{value / 1e3:.1f} µs" for value in us), str(timing.deadline_misses),
-        )  # fmt: skip
+        samples = [timing.execution_ns] * 3 + ([timing.lateness_ns] * 3 if lateness else [])
+        fractions = (0.5, 0.99, 1.0) * (2 if lateness else 1)
+        pairs = zip(samples, fractions, strict=True)
+        values = [_percentile(sample, fraction) for sample, fraction in pairs]
+        row = [name, str(timing.runs), *(f"{value / 1e3:.1f} µs" for value in values)]
+        if lateness:
+            row.append(str(timing.deadline_misses))
+        table.add_row(*row)
+    return table
+
+
+def bench_vc(
+    *,
+    seconds: float = 60.0,
+    execution_runs: int = 1_000_000,
+    spins_us: tuple[float, ...] = (0.0, 500.0),
+    width: int = 130,
+) -> dict[str, dict[str, TaskTiming]]:
+    """Execution time over ``execution_runs`` runs of Task B in lockstep, then lateness in real
+    time for ``seconds`` with each way of waiting (``spins_us``: the last µs polled, 0 sleeps
+    all the way); prints the tables, returns the samples by phase."""
     console = Console(width=width)
-    console.print(table)
-    outputs = vc.outputs
-    console.print(
-        f"EB commanded at the end: {outputs.eb_commanded}; System Decay: {outputs.system_decay};"
-        f" seeds' WCET A/B/C 20/24/31 µs on their target."
-    )
-    return timings
+    results: dict[str, dict[str, TaskTiming]] = {}
+    if execution_runs > 0:
+        lockstep_s = execution_runs * DEADLINE_S
+        timings, _, wall_s = _run(SimClock(), lockstep_s)
+        results["lockstep"] = timings
+        title = (f"VC execution time in lockstep: {lockstep_s:g} s simulated in {wall_s:.1f} s "
+                 f"wall (Python, this machine; the seeds' WCET A/B/C: 20/24/31 µs)")  # fmt: skip
+        console.print(_table(title, timings, lateness=False))
+    for spin_us in spins_us:
+        clock = RealTimeClock(1.0, spin_s=spin_us / 1e6)
+        timings, vc, wall_s = _run(clock, seconds)
+        results[f"real time, spin {spin_us:g} µs"] = timings
+        how = "sleeping until each release" if spin_us == 0 else f"polling the last {spin_us:g} µs"
+        title = (f"VC in real time, {how}: {seconds:g} s simulated, {wall_s:.1f} s wall; "
+                 f"deadline {DEADLINE_S * 1e3:g} ms")  # fmt: skip
+        console.print(_table(title, timings, lateness=True))
+        outputs = vc.outputs
+        console.print(f"EB commanded at the end: {outputs.eb_commanded}; "
+                      f"System Decay: {outputs.system_decay}")  # fmt: skip
+    return results

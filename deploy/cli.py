@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from deploy.cli_sfa import sfa_app
 from protocol import DEFAULT_ROUTER_ENDPOINT, ZenohSettings
 from protocol.router import run_router
 
@@ -28,6 +29,7 @@ trackdb_app = typer.Typer(help="Track data in and out of the database.", no_args
 app.add_typer(trackdb_app, name="trackdb")
 vc_app = typer.Typer(help="Vital Control tools.", no_args_is_help=True)
 app.add_typer(vc_app, name="vc")
+app.add_typer(sfa_app, name="sfa")
 
 ZenohOption = Annotated[str, typer.Option("--zenoh", help="Zenoh router endpoint to connect to.")]
 DatabaseOption = Annotated[
@@ -115,6 +117,34 @@ def onboard(
 
 
 @app.command()
+def up(
+    vehicles: Annotated[int, typer.Option("--vehicles", min=1, max=100)] = 1,
+    line: Annotated[str, typer.Option("--line", help="Line id.")] = "bologna-ring",
+    port: Annotated[int, typer.Option(help="Trackside HTTP port (0: a free one).")] = 8000,
+    router_port: Annotated[int, typer.Option(help="Router TCP port (0: a free one).")] = 7447,
+    speed: Annotated[float, typer.Option(help="Simulated s per wall s.")] = 1.0,
+    data_dir: Annotated[Path, typer.Option(help="Logs, database, admin password.")] = Path(
+        ".ato/up"
+    ),
+    database: DatabaseOption = None,
+    simulated_operators: Annotated[
+        bool, typer.Option(help="The simulated operator answers every vehicle's VC requests.")
+    ] = False,
+) -> None:
+    """Router, trackside and N onboard processes, each its own process, until Ctrl-C."""
+    from deploy.processes import stop_on_signals
+    from deploy.up import UpPlan, run_up
+
+    stop = threading.Event()
+    plan = UpPlan(vehicles=vehicles, line=line, port=port, router_port=router_port,
+                  data_dir=data_dir, database=database, speed=speed,
+                  simulated_operators=simulated_operators)  # fmt: skip
+    with stop_on_signals(stop):
+        code = run_up(plan, stop, out=lambda text: print(text, flush=True))
+    raise typer.Exit(code)
+
+
+@app.command()
 def demo(
     port: int = 8000,
     data_dir: Annotated[Path, typer.Option(help="Where the demo keeps its database.")] = Path(
@@ -127,6 +157,55 @@ def demo(
 
     _logging(verbose)
     run_demo(port=port, data_dir=data_dir)
+
+
+@app.command()
+def scenarios() -> None:
+    """List the scenario library's names, one a line."""
+    from deploy.scenario import scenario_names
+
+    for name in scenario_names():
+        print(name)
+
+
+@app.command("run")
+def run_scenario(
+    scenario: Annotated[str, typer.Argument(help="A scenario name (see `ato scenarios`) or file.")],
+    fast: Annotated[bool, typer.Option("--fast", help="Lockstep, as fast as possible.")] = False,
+    speed: Annotated[float, typer.Option(help="Real-time pacing factor (without --fast).")] = 1.0,
+    seed: Annotated[int | None, typer.Option(help="Override the scenario's seed.")] = None,
+    report: Annotated[
+        Path | None, typer.Option(help="Write kpis.json, telemetry.npz and report.html here.")
+    ] = None,
+) -> None:
+    """Run one scenario with trackside, onboard and operator in this process; exit 0 iff every
+    expectation holds."""
+    from deploy.scenario.console import run_from_cli
+
+    raise typer.Exit(run_from_cli(scenario, fast=fast, speed=speed, seed=seed, report=report))
+
+
+@app.command()
+def campaign(
+    scenarios: Annotated[
+        list[str] | None, typer.Argument(help="Scenario names (default: the fault scenarios).")
+    ] = None,
+    seeds: Annotated[int, typer.Option(help="Seeds per scenario.")] = 20,
+    first_seed: Annotated[int, typer.Option(help="The first seed.")] = 0,
+    workers: Annotated[int, typer.Option(help="Worker processes.")] = 2,
+    vary: Annotated[
+        list[str] | None, typer.Option(help="KEY=V1,V2: sweep a scenario field (repeatable).")
+    ] = None,
+    json_path: Annotated[Path | None, typer.Option("--json", help="Write the summary.")] = None,
+) -> None:
+    """Scenarios × seeds × variations in lockstep over worker processes; a summary table. Exit
+    1 if a run crashed or ended unsafe (overspeed beyond the EBI, EoA passed, obstacle reached)."""
+    from deploy.scenario.console import campaign_from_cli
+
+    raise typer.Exit(campaign_from_cli(
+        scenarios or [], seeds=seeds, first_seed=first_seed, workers=workers, vary=vary or [],
+        json_path=json_path,
+    ))  # fmt: skip
 
 
 @bench_app.command("trackdb")
@@ -167,14 +246,37 @@ def bench_adf(
 
 @bench_app.command("vc")
 def bench_vc(
-    seconds: Annotated[float, typer.Option(help="Real-time run length [s].")] = 60.0,
-) -> None:
-    """VC tasks A/B/C in real time: execution time, lateness at 2 ms, deadline misses."""
+    seconds: Annotated[float, typer.Option(help="Each real-time run's length [s].")] = 60.0,
+    runs: Annotated[int, typer.Option(help="Task B runs timed in lockstep (0: none).")] = 1_000_000,
+    spin_us: Annotated[
+        list[float] | None,
+        typer.Option("--spin-us", help="Poll the clock for the last µs before each release "
+                     "(repeatable; default 0 and 500: both, side by side)."),
+    ] = None,
+) -> None:  # fmt: skip
+    """VC tasks A/B/C: execution time over 10⁶ runs, lateness at 2 ms in real time, misses."""
     from deploy.bench_vc import bench_vc as run
 
-    if seconds <= 0:
-        raise typer.BadParameter("--seconds must be positive")
-    run(seconds=seconds)
+    if seconds <= 0 or runs < 0:
+        raise typer.BadParameter("--seconds must be positive and --runs not negative")
+    spins = tuple(spin_us) if spin_us else (0.0, 500.0)
+    if any(not 0 <= spin < 1e6 for spin in spins):
+        raise typer.BadParameter("--spin-us must be in [0, 1e6)")
+    run(seconds=seconds, execution_runs=runs, spins_us=spins)
+
+
+@bench_app.command("sfa")
+def bench_sfa(
+    ring_s: Annotated[float, typer.Option(help="bologna-ring drive [s].")] = 900.0,
+    milano_s: Annotated[float, typer.Option(help="milano-bologna drive [s].")] = 2700.0,
+    fuzz: Annotated[int, typer.Option(help="Fuzz datagrams.")] = 100_000,
+) -> None:
+    """Sensor fusion: accuracy on both lines, fuzzing, IMU cost and UDP throughput."""
+    from deploy.bench_sfa import bench_sfa as run
+
+    if ring_s < 130 or milano_s < 130 or fuzz < 1:
+        raise typer.BadParameter("drives must last ≥ 130 s and --fuzz be positive")
+    run(ring_s=ring_s, milano_s=milano_s, fuzz_count=fuzz)
 
 
 @vc_app.command("replay")
@@ -209,6 +311,19 @@ def vc_replay(
     console.print(table)
     if replay.torn_last_line is not None:
         console.print(f"torn last line ignored ({len(replay.torn_last_line)} characters)")
+
+
+@bench_app.command("trackside")
+def bench_trackside(
+    vehicles: Annotated[int, typer.Option(min=1, help="Simulated vehicles at 5 Hz.")] = 100,
+    seconds: Annotated[float, typer.Option(min=1.0, help="Load duration [s].")] = 20.0,
+    rate: Annotated[float, typer.Option(min=1.0, help="REST requests per second.")] = 100.0,
+    sockets: Annotated[int, typer.Option(min=1, help="Per-vehicle WebSocket clients.")] = 10,
+) -> None:
+    """ATO-TS with a simulated fleet and REST load: REST and status-to-browser p50/p99."""
+    from deploy.bench_trackside import bench_trackside as run
+
+    run(vehicles=vehicles, seconds=seconds, rate_hz=rate, sockets=sockets)
 
 
 @bench_app.command("zenoh")

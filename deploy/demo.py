@@ -38,7 +38,8 @@ _log = logging.getLogger(__name__)
 
 
 def _demo_driver(stop: threading.Event) -> None:
-    """Once URV1 is alive, ask it for the demo speed until it accepts."""
+    """Once URV1 is alive, ask it for the demo speed until it accepts (the trackside's simulated
+    operator answers the Vital Control's requests)."""
     with open_session(ZenohSettings(connect=(DEMO_ROUTER,))) as session:
         alive = threading.Event()
         key = ALIVE_ONBOARD.format(vehicle=DEMO_VEHICLE)
@@ -60,8 +61,9 @@ def _demo_driver(stop: threading.Event) -> None:
                     continue
                 if ack.accepted:
                     _log.info("demo driver: %s accepted 30 km/h", DEMO_VEHICLE)
-                    return
+                    break
                 stop.wait(1.0)
+            stop.wait()
 
 
 def run_demo(*, port: int, data_dir: Path) -> None:
@@ -86,6 +88,7 @@ def run_demo(*, port: int, data_dir: Path) -> None:
         zenoh_connect=(DEMO_ROUTER,),
         admin_user=DEMO_USER,
         admin_password=DEMO_PASSWORD,
+        simulated_operators=(DEMO_VEHICLE,),
     )
     onboard_args = ato_command("onboard", "--vehicle", DEMO_VEHICLE, "--zenoh", DEMO_ROUTER)
     with child_process(onboard_args, log_file=data_dir / f"onboard-{DEMO_VEHICLE}.log"):

@@ -8,17 +8,21 @@ on arrival, then executed at the next release of the ``commands`` task, so that 
 happens at a tick of simulated time.
 
 In lockstep (a :class:`SimClock`) two exchanges are made synchronous so that a run does not
-depend on how fast the wire is: the handshake waits for its answer, and each status report sent
-in an open session waits (up to ``BARRIER_S`` of wall time) for its acknowledgement before the
-clock moves on, the per-link barrier of ARCHITECTURE.md. In real time both are asynchronous.
+depend on how fast the wire is: the handshake waits for its answer, and the acknowledgement of
+each status report sent in an open session is taken at the next status tick, one status period
+later, waiting for it there (up to ``BARRIER_S`` of wall time) if it has not come: the per-link
+barrier of ARCHITECTURE.md, pipelined so that the round trip overlaps the simulation. In real
+time both are asynchronous.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import threading
 from collections import deque
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Literal
 
 import zenoh
@@ -28,9 +32,13 @@ from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.runtime import Clock, Executive, SimClock
 from onboard.runtime.clock import NS_PER_S
 from onboard.session import SessionClient
+from onboard.sfa.chain import SensorFusionChain, SensorSettings
 from onboard.stack import OnboardStack, Plant
+from onboard.vc import Datalog, DatalogRecorder, VcConfig
+from onboard.vc.installation import VcFaults, VcInstallation
 from onboard.vcu.vehicle import BogieVehicle
 from protocol import (
+    LivelinessWatcher,
     ProtocolError,
     TypedPublisher,
     TypedQueryable,
@@ -42,6 +50,7 @@ from protocol import (
 from protocol import messages as m
 from protocol.registry import (
     ALIVE_ONBOARD,
+    ALIVE_TRACKSIDE,
     COMMAND,
     EVENT,
     JOURNEY_PROFILE,
@@ -55,13 +64,15 @@ from protocol.registry import (
 )
 from trackdb import TrackMap
 
-__all__ = ["Fidelity", "OnboardNode", "OnboardSettings", "Plant", "TASK_TABLE"]
+__all__ = ["Fidelity", "NODE_VC_CONFIG", "OnboardNode", "OnboardSettings", "Plant", "TASK_TABLE"]
 
 _log = logging.getLogger(__name__)
 
 Fidelity = Literal["point_mass", "bogie"]
-BARRIER_S = 1.0
-"""Lockstep: the longest wall time a status report waits for its acknowledgement."""
+BARRIER_S = 10.0
+"""Lockstep: the longest wall time a status report waits for its acknowledgement. Long, so that a
+loaded machine never changes a run; the wait ends at once when the trackside's liveliness token
+goes, and is not made again until a session is established anew."""
 
 
 @dataclass(frozen=True)
@@ -71,15 +82,21 @@ class TaskSpec:
 
 
 TASK_TABLE: dict[str, TaskSpec] = {
-    "commands": TaskSpec(period_s=0.05, priority=40),
-    "plant": TaskSpec(period_s=0.01, priority=30),
-    "etcs": TaskSpec(period_s=0.1, priority=25),
-    "control": TaskSpec(period_s=0.2, priority=20),
-    "session": TaskSpec(period_s=0.1, priority=15),
-    "status": TaskSpec(period_s=0.2, priority=10),
-    "track_data": TaskSpec(period_s=5.0, priority=5),
+    "commands": TaskSpec(period_s=0.05, priority=90),
+    "plant": TaskSpec(period_s=0.01, priority=80),
+    "sfa": TaskSpec(period_s=0.01, priority=79),
+    "etcs": TaskSpec(period_s=0.1, priority=60),
+    "control": TaskSpec(period_s=0.2, priority=50),
+    # The Vital Control's own tasks sit between: vc.io 40, B 30, C 20, the 2oo2 voter 15, A 10.
+    "vital_link": TaskSpec(period_s=0.01, priority=8),
+    "session": TaskSpec(period_s=0.1, priority=6),
+    "status": TaskSpec(period_s=0.2, priority=4),
+    "track_data": TaskSpec(period_s=5.0, priority=2),
 }
 """The onboard tasks: period [s] and priority (higher runs first at a shared release)."""
+NODE_VC_CONFIG = VcConfig(vigilance_period_s=30.0, vigilance_timeout_s=10.0)
+"""⚠ A remote operator at a console is asked for vigilance every 30 s and has 10 s to answer
+(the VC library's 5 s / 2 s are the seeds' bench values); both are settings."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -89,10 +106,26 @@ class OnboardSettings:
     start_position_m: float = 0.0
     fidelity: Fidelity = "point_mass"
     """The plant: the point-mass model, or the 10-DOF bogie model behind the VCU."""
+    initial_soc: float = 0.9
+    """The batteries' state of charge at start (the bogie model's powertrain)."""
+    localisation: Literal["fused", "truth"] = "fused"
+    """What the ATO-OB and the ADF take for the train's position and speed: the sensor-fusion
+    estimate (interface-modules emulator → link → listener → OBCU input, in this process), or
+    the plant's truth (for tests of other parts). ETCS keeps its own odometry either way."""
+    sensors: SensorSettings = SensorSettings()
+    """The emulated sensors, their link to the listener, and their seed."""
     etcs_id: int = 1
     train_length_m: float = 6.0
     energy_plans: bool = True
     """Plan journeys energy-minimised (else the plain LSPB)."""
+    vital_control: bool = True
+    """Fit the Vital Control (its tasks B and C run every 2 ms)."""
+    vc_config: VcConfig = NODE_VC_CONFIG
+    vc_replicas: int = 1
+    """1, or 2 for two VC boards in 2-out-of-2."""
+    vc_faults: VcFaults = VcFaults()
+    vc_datalog: Path | None = None
+    """Record the VC's notifications (JSON Lines) here; ``ato vc replay`` reads them."""
 
 
 class OnboardNode:
@@ -114,14 +147,24 @@ class OnboardNode:
         self.lockstep = isinstance(clock, SimClock)
         self.executive = Executive(clock)
         self.plant: Plant = (
-            BogieVehicle(position_m=settings.start_position_m)
+            BogieVehicle(position_m=settings.start_position_m, initial_soc=settings.initial_soc)
             if settings.fidelity == "bogie"
             else PointMassModel(URV_PARAMETERS, position_m=settings.start_position_m)
         )
+        plant = self.plant
+        vital = VcInstallation(
+            lambda: plant.position_m, config=settings.vc_config, replicas=settings.vc_replicas,
+            faults=settings.vc_faults, start_s=clock.now_s,
+        ) if settings.vital_control else None  # fmt: skip
+        self.sensor_fusion = (
+            SensorFusionChain(track_map, settings.sensors)
+            if settings.localisation == "fused" else None
+        )  # fmt: skip
         self.stack = OnboardStack(
             track_map, self.plant, URV_PARAMETERS, start_s=clock.now_s,
-            energy_plans=settings.energy_plans,
+            energy_plans=settings.energy_plans, vital=vital, locator=self.sensor_fusion,
         )  # fmt: skip
+        self._datalog: Datalog | None = None
         self.track_database = self.stack.track_database
         self.session_client = SessionClient(
             vehicle_id=self.vehicle_id, etcs_id=settings.etcs_id,
@@ -142,6 +185,7 @@ class OnboardNode:
         self._journey_acks = TypedPublisher(session, JOURNEY_PROFILE_ACK, **chunks)
         self._status_acks = TypedSubscriber(session, STATUS_ACK, vehicle=self.vehicle_id)
         self._status_acked = threading.Event()
+        self._ack_pending = False
         self._status_acks_pushed = TypedSubscriber(
             session,
             STATUS_ACK,
@@ -152,13 +196,31 @@ class OnboardNode:
         self._termination_out = TypedPublisher(session, SESSION_TERMINATION, **chunks)
         self._authorities = TypedSubscriber(session, MOVEMENT_AUTHORITY, vehicle=self.vehicle_id)
         self._line_version: m.LineVersionReply | None = None
+        self.barrier_misses = 0
+        """Lockstep status barriers that ended without the acknowledgement (a run with none
+        is independent of the machine's speed)."""
+        self._barrier_armed = True
+        self._tracksides = LivelinessWatcher(
+            session, ALIVE_TRACKSIDE.format(instance="*"), self._on_trackside_liveliness
+        )
         self._token = declare_liveliness(session, ALIVE_ONBOARD.format(vehicle=self.vehicle_id))
 
         for name, spec in TASK_TABLE.items():
+            if (name == "vital_link" and vital is None) or (
+                name == "sfa" and self.sensor_fusion is None
+            ):
+                continue
             self.executive.add_task(
                 name, getattr(self, f"_task_{name}"), period_s=spec.period_s,
                 priority=spec.priority,
             )  # fmt: skip
+        if vital is not None:
+            vital.register(self.executive)
+            if settings.vc_datalog is not None:
+                self._datalog = Datalog(settings.vc_datalog)
+                DatalogRecorder(self._datalog, vital.boards[0].vc, pair=vital.pair).register(
+                    self.executive, period_s=vital.config.task_a_period_s
+                )
         self.emit(m.EventSeverity.INFO, "onboard.started", f"line {track_map.line.id}")
 
     @property
@@ -194,6 +256,13 @@ class OnboardNode:
     def _on_line_version(self, reply: m.LineVersionReply) -> None:
         with self._inbox_lock:
             self._line_version = reply
+
+    def _on_trackside_liveliness(self, _key: str, alive: bool) -> None:
+        if not alive:
+            # A trackside went away: no acknowledgement will come, so the barrier ends now and
+            # is not waited on again before the next handshake.
+            self._barrier_armed = False
+            self._status_acked.set()
 
     def _on_session_reply(self, reply: m.SessionAccept | m.SessionReject) -> None:
         with self._inbox_lock:
@@ -299,18 +368,54 @@ class OnboardNode:
             if refused is None:
                 self.emit(m.EventSeverity.INFO, "ato.disengaged", f"by {command.issued_by}",
                           now_ns=now_ns)  # fmt: skip
+        elif isinstance(body, m.SkipStopCommand):
+            refused = self.stack.refusal(body)
+            if refused is None:
+                self.stack.skip_stop(body.timing_point_id, now_s)
+                self.emit(m.EventSeverity.INFO, "journey.skip_stop",
+                          f"{body.timing_point_id} skipped by {command.issued_by}",
+                          now_ns=now_ns)  # fmt: skip
+        elif isinstance(body, m.TrainHoldCommand):
+            refused = self.stack.refusal(body)
+            if refused is None:
+                self.stack.train_hold(body.hold, now_s)
+                self.emit(m.EventSeverity.INFO, "journey.train_hold",
+                          f"{'held' if body.hold else 'released'} by {command.issued_by}",
+                          now_ns=now_ns)  # fmt: skip
+        elif isinstance(body, m.EmergencyBrakeCommand):
+            refused = self.stack.operator_emergency_brake()
+            if refused is None:
+                self.emit(m.EventSeverity.WARNING, "operator.emergency_brake",
+                          f"by {command.issued_by}", now_ns=now_ns)  # fmt: skip
+        elif isinstance(body, m.OperatorConfirmCommand):
+            refused = self.stack.operator_confirm(body.request, body.number)
+            if refused is None:
+                self.emit(m.EventSeverity.INFO, f"operator.confirm.{body.request.value}",
+                          f"request {body.number} by {command.issued_by}",
+                          now_ns=now_ns)  # fmt: skip
         if refused is not None:
             self.emit(m.EventSeverity.WARNING, "command.refused",
                       f"command {command.command_id}: {refused}", now_ns=now_ns)  # fmt: skip
 
-    def _task_plant(self, _now_ns: int) -> None:
+    def _task_plant(self, now_ns: int) -> None:
         position = self.plant.position_m
         self.plant.step(
             TASK_TABLE["plant"].period_s,
             self.stack.force_demand_n,
             gradient_permille=self.track_map.gradient_permille(position),
             curve_radius_m=self.track_map.curve_radius_m(position),
+            emergency_brake=self.stack.emergency_brake(now_ns / NS_PER_S),
         )
+
+    def _task_sfa(self, now_ns: int) -> None:
+        assert self.sensor_fusion is not None
+        now_s = now_ns / NS_PER_S
+        self.sensor_fusion.step(now_s, SensorFusionChain.truth(now_s, self.plant))
+        if self.stack.vital is not None:
+            self.stack.vital.fused_speed(self.sensor_fusion.speed_mps, now_s)
+
+    def _task_vital_link(self, now_ns: int) -> None:
+        self.stack.step_vital_link(now_ns / NS_PER_S)
 
     def _task_etcs(self, now_ns: int) -> None:
         self.stack.step_etcs(now_ns / NS_PER_S)
@@ -360,6 +465,7 @@ class OnboardNode:
         client = self.session_client
         client.on_response(reply, now_ns / NS_PER_S)
         if client.established:
+            self._barrier_armed = True
             self.emit(m.EventSeverity.INFO, "session.established",
                       f"with {client.trackside_id}", now_ns=now_ns)  # fmt: skip
         elif isinstance(reply, m.SessionReject):
@@ -368,14 +474,26 @@ class OnboardNode:
 
     def _task_status(self, now_ns: int) -> None:
         client = self.session_client
+        if self._ack_pending:
+            # Lockstep: the previous report's acknowledgement is taken at this tick, one status
+            # period after the report, however fast it came back (it had that long to come).
+            self._ack_pending = False
+            if self._barrier_armed and self._status_acked.wait(BARRIER_S):
+                self._task_session(now_ns)
+            if not self._status_acked.is_set():
+                self.barrier_misses += 1
         if not client.status_due(now_ns / NS_PER_S, self._status_seq):
             return
-        waiting = self.lockstep and client.established
         self._status_acked.clear()
         self._status.put(self.status(now_ns))
         self._status_seq += 1
-        if waiting and self._status_acked.wait(BARRIER_S):
-            self._task_session(now_ns)  # take the acknowledgement at this tick
+        self._ack_pending = self.lockstep and client.established
+
+    @property
+    def inputs_received(self) -> tuple[int, int]:
+        """Journey profiles and movement authorities received so far (lockstep drivers wait on
+        these so that a message sent between two slices is taken at the next one)."""
+        return self._journeys.stats.received, self._authorities.stats.received
 
     @property
     def reports_sent(self) -> int:
@@ -388,14 +506,16 @@ class OnboardNode:
         etcs = self.stack.etcs.output
         journey = self.track_database.journey
         driving, now_s = self.stack.driving, now_ns / NS_PER_S
-        next_stop = driving.next_stop(self.plant.position_m) if driving.journey else None
+        position_m, speed_mps = self.stack.position_m, self.stack.speed_mps
+        next_stop = driving.next_stop(position_m) if driving.journey else None
+        intervention = self.stack.etcs.intervention_speed_mps()
         return m.StatusReport(
             vehicle_id=self.vehicle_id,
             seq=self._status_seq,
             sim_time_s=now_ns / NS_PER_S,
             line_id=self.track_map.line.id,
-            position_m=self.track_map.normalise(self.plant.position_m),
-            speed_mps=self.plant.speed_mps,
+            position_m=self.track_map.normalise(position_m),
+            speed_mps=speed_mps,
             acceleration_mps2=self.plant.acceleration_mps2,
             traction_force_n=self.plant.applied_force_n,
             ato_state=self.stack.ato_state,
@@ -412,8 +532,13 @@ class OnboardNode:
                     scheduled_s=stop.arrival_s,
                     estimated_s=estimate,
                 )
-                for stop, estimate in driving.arrival_estimates(now_s, self.plant.position_m)
+                for stop, estimate in driving.arrival_estimates(now_s, position_m)
             ),  # fmt: skip
+            vital_control=self.stack.vital_status(),
+            permitted_speed_mps=max(etcs.permitted_speed_mps, 0.0),
+            intervention_speed_mps=intervention if math.isfinite(intervention) else None,
+            reference_speed_mps=driving.reference_speed_mps(now_s),
+            train_hold=driving.hold,
         )
 
     def emit(
@@ -450,6 +575,8 @@ class OnboardNode:
         for closable in (
             self._journeys, self._journey_acks, self._status_acks, self._status_acks_pushed,
             self._terminations, self._termination_out, self._authorities, self._status,
-            self._events,
+            self._events, self._tracksides,
         ):  # fmt: skip
             closable.close()
+        if self._datalog is not None:
+            self._datalog.close()

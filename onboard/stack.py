@@ -27,9 +27,12 @@ from onboard.adf.journey import JourneyPlan, plan_journey
 from onboard.adf.odp import InfeasibleLegError
 from onboard.adf.supervisor import ModeRequest
 from onboard.ato_ob import AtoObController, AtoObInputs, EtcsStatus, RequestRefusedError
+from onboard.ato_ob.vital_link import VitalLink
 from onboard.etcs import EtcsOnboard, MaSection, MovementAuthority
 from onboard.plant.point_mass import PointMassParameters
 from onboard.track_database_manager import TrackDatabaseManager
+from onboard.vc.installation import VcInstallation
+from onboard.vc.ipc import VcEventKind
 from protocol import messages as m
 from trackdb import TrackMap
 
@@ -41,6 +44,9 @@ MIN_AUTHORITY_M = 5.0
 REPLAN_MOVED_M = 1.0
 """A journey planned at acceptance is replanned at engagement if the vehicle moved more."""
 _ENGAGED = (m.AtoState.ENGAGED, m.AtoState.DISENGAGING)
+_VC_ALARMS = frozenset(
+    {VcEventKind.EB_CONDITION, VcEventKind.SYSTEM_DECAY, VcEventKind.EB_COMMANDED}
+)
 
 
 @dataclass(frozen=True)
@@ -79,12 +85,25 @@ class Plant(Protocol):
     @property
     def applied_force_n(self) -> float: ...
 
+    @property
+    def traction_energy_j(self) -> float: ...
+
     def force_limits_n(self, speed_mps: float) -> tuple[float, float]: ...
 
     def step(
         self, dt_s: float, force_demand_n: float, *, gradient_permille: float = ...,
-        curve_radius_m: float = ...,
+        curve_radius_m: float = ..., emergency_brake: float = ...,
     ) -> None: ...  # fmt: skip
+
+
+class Locator(Protocol):
+    """Where the train is and how fast it goes, as the onboard's localisation estimates it."""
+
+    @property
+    def position_m(self) -> float: ...
+
+    @property
+    def speed_mps(self) -> float: ...
 
 
 @dataclass
@@ -96,7 +115,14 @@ class OnboardStack:
     model: PointMassParameters
     start_s: float = 0.0
     energy_plans: bool = True
+    vital: VcInstallation | None = None
+    """The Vital Control fitted to the vehicle, if any (its tasks run on the node)."""
+    locator: Locator | None = None
+    """The localisation the ATO-OB and the ADF use (the sensor-fusion estimate); the plant's
+    truth when none is given. ETCS keeps its own odometry."""
     session_alive: bool = False
+    internal_fault: bool = False
+    """An ATO-OB internal fault (injected by scenario runs): the controller goes to FA."""
     events: list[StackEvent] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -113,8 +139,27 @@ class OnboardStack:
         self.remote_target_mps: float | None = None
         self.force_demand_n = 0.0
         self._ad_requested = False
+        self.vital_links = [
+            VitalLink(request, response, vigilance_timeout_s=self.vital.config.vigilance_timeout_s,
+                      sequence_modulo=self.vital.config.sequence_modulo)
+            for request, response in self.vital.links
+        ] if self.vital is not None else []  # fmt: skip
+        self._balise_reading = self.etcs.last_balise_reading
+        self._vc_events_seen = (0, 0)
+        self._pair_events_seen = 0
+        self._vc_braking = self.vital is not None and self.vital.eb_commanded
 
     # -- state ---------------------------------------------------------------------------------
+
+    @property
+    def position_m(self) -> float:
+        """The estimated front end, unwrapped like the plant's position [m]."""
+        return self.plant.position_m if self.locator is None else self.locator.position_m
+
+    @property
+    def speed_mps(self) -> float:
+        """The estimated speed [m/s]."""
+        return self.plant.speed_mps if self.locator is None else self.locator.speed_mps
 
     @property
     def ato_state(self) -> m.AtoState:
@@ -137,15 +182,16 @@ class OnboardStack:
         review = self.track_database.review(profile)
         if not review.accepted:
             return False, review.reason
-        chainage = self.track_map.normalise(self.plant.position_m)
+        chainage = self.track_map.normalise(self.position_m)
         try:
             plan = plan_journey(self.track_map, self.model, profile, start_chainage_m=chainage,
                                 energy=self.energy_plans)  # fmt: skip
         except InfeasibleLegError as exc:
             self.track_database.journey = None
             return False, f"infeasible: {exc}"
-        self.journey_plan, self._planned_at_m = plan, self.plant.position_m
+        self.journey_plan, self._planned_at_m = plan, self.position_m
         self._journey_started = False
+        self.driving.skipped.clear()
         return True, None
 
     def receive_movement_authority(self, message: m.MovementAuthorityMessage, now_s: float) -> str:
@@ -178,17 +224,52 @@ class OnboardStack:
         if isinstance(body, m.RemoteDrivingTargetCommand):
             if state in _ENGAGED:
                 return "ATO engaged: disengage before remote driving"
-            limit = self.track_map.speed_limit_mps(self.plant.position_m)
+            limit = self.track_map.speed_limit_mps(self.position_m)
             if body.target_speed_mps > limit:
                 return f"target {body.target_speed_mps:.2f} m/s above line speed {limit:.2f} m/s"
+        if isinstance(body, m.EmergencyBrakeCommand | m.OperatorConfirmCommand):
+            if not self.vital_links:
+                return "no Vital Control fitted"
+            if isinstance(body, m.OperatorConfirmCommand):
+                return self.vital_links[0].refusal(body.request, body.number)
+        if isinstance(body, m.SkipStopCommand):
+            return self._skip_refusal(body.timing_point_id)
+        if isinstance(body, m.TrainHoldCommand) and self.journey_plan is None:
+            return "no journey profile accepted"
         return None
+
+    def _skip_refusal(self, timing_point_id: str) -> str | None:
+        driving = self.driving
+        if driving.journey is not None:
+            driving.next_stop(self.position_m)  # brings the served stops up to date
+            ahead = driving.journey.stops[driving.served :]
+        elif self.journey_plan is not None:
+            ahead = self.journey_plan.stops
+        else:
+            return "no journey profile accepted"
+        for stop in ahead:
+            if stop.timing_point_id == timing_point_id:
+                if stop.end_of_journey:
+                    return f"{timing_point_id} ends the journey: it cannot be skipped"
+                return None
+        return f"{timing_point_id} is not a stopping point ahead on the journey"
+
+    def skip_stop(self, timing_point_id: str, now_s: float) -> None:
+        """The driver's "Skip Stopping Point" (checked by :meth:`refusal`)."""
+        self.driving.skip_stop(timing_point_id, now_s, position_m=self.position_m,
+                               speed_mps=self.speed_mps)  # fmt: skip
+
+    def train_hold(self, hold: bool, now_s: float) -> None:
+        """Train hold on or off (checked by :meth:`refusal`)."""
+        self.driving.set_hold(hold, now_s, position_m=self.position_m,
+                              speed_mps=self.speed_mps)  # fmt: skip
 
     def remote(self, target_mps: float, now_s: float) -> None:
         self.remote_selected = True
         self.remote_target_mps = target_mps
         self.driving.remote(
-            target_mps, now_s, speed_mps=self.plant.speed_mps,
-            gradient_permille=self.track_map.gradient_permille(self.plant.position_m),
+            target_mps, now_s, speed_mps=self.speed_mps,
+            gradient_permille=self.track_map.gradient_permille(self.position_m),
         )  # fmt: skip
 
     def engage(self, now_s: float) -> str | None:
@@ -215,23 +296,112 @@ class OnboardStack:
             or self.track_database.journey is None
         ):
             return
-        if abs(self.plant.position_m - self._planned_at_m) > REPLAN_MOVED_M:
+        if abs(self.position_m - self._planned_at_m) > REPLAN_MOVED_M:
             self.journey_plan = plan_journey(
                 self.track_map, self.model, self.track_database.journey,
-                start_chainage_m=self.track_map.normalise(self.plant.position_m),
+                start_chainage_m=self.track_map.normalise(self.position_m),
                 energy=self.energy_plans,
             )  # fmt: skip
-        self.driving.start_journey(self.journey_plan, now_s, position_m=self.plant.position_m)
+        self.driving.start_journey(self.journey_plan, now_s, position_m=self.position_m)
         self._journey_started = True
+
+    # -- Vital Control ---------------------------------------------------------------------------
+
+    def emergency_brake(self, now_s: float) -> float:
+        """The EB's share of the full brake force on the plant now, 0 to 1 (0 without a VC)."""
+        return 0.0 if self.vital is None else self.vital.emergency_brake(now_s)
+
+    def operator_emergency_brake(self) -> str | None:
+        """The operator's EB, relayed to the VC; the refusal, if refused."""
+        if not self.vital_links:
+            return "no Vital Control fitted"
+        for link in self.vital_links:
+            link.request_emergency_brake()
+        return None
+
+    def operator_confirm(self, kind: m.OperatorRequestKind, number: int) -> str | None:
+        """The operator's answer to a VC request; the refusal, if refused."""
+        if not self.vital_links:
+            return "no Vital Control fitted"
+        refusals = [link.confirm(kind, number) for link in self.vital_links]
+        return refusals[0]
+
+    def step_vital_link(self, now_s: float) -> None:
+        """The ATO-OB answers the VC's requests; new operator requests and VC events are noted."""
+        failed = self.controller.state is m.AtoState.FAILURE
+        for link in self.vital_links:
+            link.step(now_s, failed=failed)
+        if self.vital is None:
+            return
+        for request in self.vital_links[0].take_raised():
+            text = f"{request.kind.value} request {request.number}"
+            if request.deadline_s is not None:
+                text += f", answer by {request.deadline_s:.2f} s"
+            urgent = request.deadline_s is not None
+            severity = m.EventSeverity.WARNING if urgent else m.EventSeverity.INFO
+            self._note(severity, f"vc.request.{request.kind.value}", text)
+        vc = self.vital.boards[0].vc
+        seen_b, seen_c = self._vc_events_seen
+        events = sorted(vc.task_b.events[seen_b:] + vc.task_c.events[seen_c:],
+                        key=lambda e: e.time_s)  # fmt: skip
+        self._vc_events_seen = (len(vc.task_b.events), len(vc.task_c.events))
+        for event in events:
+            serious = event.kind in _VC_ALARMS
+            self._note(m.EventSeverity.ERROR if serious else m.EventSeverity.INFO,
+                       f"vc.{event.kind.value}", f"{event.task}: {event.detail}")  # fmt: skip
+        pair = self.vital.pair
+        if pair is not None:
+            for pair_event in pair.events[self._pair_events_seen :]:
+                self._note(m.EventSeverity.ERROR, f"vc.pair.{pair_event.kind.value}",
+                           f"replica {pair_event.replica}: {pair_event.detail}")  # fmt: skip
+            self._pair_events_seen = len(pair.events)
+
+    def _follow_relay(self, now_s: float) -> None:
+        """The relay's contact switches the ETCS-OB's power: isolated, or inserted and started."""
+        assert self.vital is not None
+        isolated = self.vital.etcs_isolated(now_s)
+        if isolated and not self.etcs.isolated:
+            self.etcs.isolate(now_s)
+        elif not isolated and self.etcs.isolated:
+            self.etcs.insert(now_s)
+            self.etcs.start_of_mission(now_s)
+
+    def vital_status(self) -> m.VitalControlStatus | None:
+        """The VC's state for the status report, with the requests waiting for the operator."""
+        if self.vital is None:
+            return None
+        out = self.vital.outputs
+        return m.VitalControlStatus(
+            eb_commanded=self.vital.eb_commanded, system_decay=out.system_decay,
+            decay_reasons=tuple(reason.value for reason in out.decay_reasons),
+            eb_conditions=tuple(int(condition) for condition in out.eb_conditions),
+            etcs_isolated=out.etcs_isolated, supervision_state=out.task_b_state.value,
+            brake_state=out.brake_state.value, etcs_state=out.etcs_state.value,
+            standstill=out.standstill, odometry_efficient=out.odometry_efficient,
+            speed_mps=None if out.speed_mps is None else max(out.speed_mps, 0.0),
+            replicas=len(self.vital.boards), pair_tripped=self.vital.tripped,
+            operator_requests=tuple(
+                m.OperatorRequest(kind=p.kind, number=p.number, raised_s=p.raised_s,
+                                  deadline_s=p.deadline_s, confirmed=p.confirmed)
+                for p in self.vital_links[0].pending
+            ),
+        )  # fmt: skip
 
     # -- tasks -----------------------------------------------------------------------------------
 
     def step_etcs(self, now_s: float) -> None:
+        if self.vital is not None:
+            self._follow_relay(now_s)
         self.etcs.step(now_s, self.plant.position_m, max(self.plant.speed_mps, 0.0),
                        acceleration_mps2=self.plant.acceleration_mps2)  # fmt: skip
+        reading = self.etcs.last_balise_reading
+        if reading is not self._balise_reading:
+            self._balise_reading = reading
+            if reading is not None and self.vital is not None:
+                self.vital.balise_read(reading.header)
 
     def _inputs(self, now_s: float) -> AtoObInputs:
-        position, speed = self.plant.position_m, self.plant.speed_mps
+        position, speed = self.position_m, self.speed_mps
         driving = self.driving
         stopped_at = driving.stopped_at(position, speed) if self._journey_started else None
         next_stop = driving.next_stop(position) if self._journey_started else None
@@ -254,6 +424,8 @@ class OnboardStack:
             distance_to_next_stop_sufficient=next_stop is not None,
             trackside_session_alive=self.session_alive,
             remote_driving_selected=self.remote_selected,
+            other_emergency_brake=self.vital is not None and self.vital.eb_commanded,
+            internal_fault=self.internal_fault,
         )  # fmt: skip
 
     def step_control(self, now_s: float) -> float:
@@ -274,23 +446,36 @@ class OnboardStack:
         elif mode is ModeRequest.REMOTE and driving.state is m.ScState.OFF:
             self.remote(self.remote_target_mps or 0.0, now_s)
         if out.stop_at_next_stopping_point and not driving.fallback_active and self.engaged:
-            driving.stop_at_next_stopping_point(now_s, position_m=plant.position_m,
-                                                speed_mps=plant.speed_mps)  # fmt: skip
+            driving.stop_at_next_stopping_point(now_s, position_m=self.position_m,
+                                                speed_mps=self.speed_mps)  # fmt: skip
             self._note(m.EventSeverity.WARNING, "ato.fallback_stop",
                        "trackside lost: stopping at the next stopping point")  # fmt: skip
+        elif driving.fallback_active and self.engaged and not out.stop_at_next_stopping_point:
+            driving.resume_journey(now_s, position_m=self.position_m, speed_mps=self.speed_mps)
+            self._note(m.EventSeverity.INFO, "ato.fallback_cancelled",
+                       "trackside back: the journey goes on")  # fmt: skip
         etcs = self.etcs.output
         ahead = [d for d in (out.end_of_authority_distance_m, out.supervised_location_distance_m)
                  if d is not None]  # fmt: skip
         permitted = out.permitted_speed_mps if etcs is not None else math.inf
         driving.set_etcs_limits(permitted, min(ahead) if ahead else None,
-                                position_m=plant.position_m)  # fmt: skip
+                                position_m=self.position_m)  # fmt: skip
         etcs_brake = etcs is not None and (etcs.service_brake or etcs.emergency_brake)
+        vc_braking = self.vital is not None and self.vital.eb_commanded
+        if vc_braking != self._vc_braking and self.remote_selected:
+            # An EB ends the remote driver's manoeuvre: he must ask for speed again, and what
+            # he asks is driven from where the train stands once the EB is released.
+            if vc_braking:
+                self.remote_target_mps = 0.0
+            driving.restart_remote(self.remote_target_mps or 0.0, now_s,
+                                   speed_mps=self.speed_mps)  # fmt: skip
+        self._vc_braking = vc_braking
         self.force_demand_n = driving.step(
-            now_s, position_m=plant.position_m, speed_mps=plant.speed_mps,
+            now_s, position_m=self.position_m, speed_mps=self.speed_mps,
             applied_force_n=plant.applied_force_n,
-            gradient_permille=self.track_map.gradient_permille(plant.position_m),
+            gradient_permille=self.track_map.gradient_permille(self.position_m),
             force_limits_n=plant.force_limits_n(plant.speed_mps),
             traction_allowed=traction and not (etcs is not None and etcs.traction_cut),
-            service_brake=out.full_service_brake or etcs_brake,
+            service_brake=out.full_service_brake or etcs_brake or vc_braking,
         )  # fmt: skip
         return self.force_demand_n

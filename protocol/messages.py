@@ -31,6 +31,7 @@ __all__ = [
     "CommandBody",
     "EngageCommand",
     "DisengageCommand",
+    "EmergencyBrakeCommand",
     "EtcsMode",
     "Event",
     "EventSeverity",
@@ -48,6 +49,9 @@ __all__ = [
     "MovementAuthorityReply",
     "MovementAuthorityRequest",
     "MovementAuthoritySection",
+    "OperatorConfirmCommand",
+    "OperatorRequest",
+    "OperatorRequestKind",
     "PingCommand",
     "RemoteDrivingTargetCommand",
     "ScState",
@@ -57,11 +61,14 @@ __all__ = [
     "SessionRequest",
     "SessionResponse",
     "SessionTermination",
+    "SkipStopCommand",
     "StatusAck",
     "StatusReport",
     "SupervisionStatus",
     "TimingPoint",
     "TimingPointKind",
+    "TrainHoldCommand",
+    "VitalControlStatus",
 ]
 
 SCHEMA_VERSION = 1
@@ -152,6 +159,63 @@ class ArrivalEstimate(BaseModel):
     estimated_s: NonNegativeFloat = Field(description="Estimated arrival, from journey start [s]")
 
 
+class OperatorRequestKind(StrEnum):
+    """What the Vital Control asks of the remote operator through the ATO-OB (seeds 001, 004)."""
+
+    VIGILANCE = "vigilance"
+    """Operator Vigilance: the operator confirms he is watching, before its time limit."""
+    EB_REARM = "eb_rearm"
+    """EB Rearm Confirmation: the EB may be released (standstill, no hazard)."""
+    ETCS_ISOLATION = "etcs_isolation"
+    """ETCS Isolation Confirmation: offered at standstill with ETCS inserted."""
+    ETCS_INSERTION = "etcs_insertion"
+    """ETCS Insertion Confirmation: offered at standstill with ETCS isolated."""
+
+
+class OperatorRequest(BaseModel):
+    """One request of the Vital Control waiting for the operator; ``number`` binds the answer."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    kind: OperatorRequestKind
+    number: int = Field(ge=0, le=255, description="The request's sequence number (one byte)")
+    raised_s: NonNegativeFloat = Field(description="When the ATO-OB first saw it [s]")
+    deadline_s: NonNegativeFloat | None = Field(
+        default=None, description="When an unanswered request brakes the train [s], if ever"
+    )
+    confirmed: bool = Field(default=False, description="The operator's answer is on board")
+
+
+StateName = Annotated[str, Field(min_length=1, max_length=40, pattern=r"^[a-z0-9_]+$")]
+
+
+class VitalControlStatus(BaseModel):
+    """The Vital Control module's state, as the ATO-OB reports it (seeds 001, 004)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    eb_commanded: bool = Field(description="The EB valves are de-energised")
+    system_decay: bool = Field(description="Stopped until the onboard systems are restarted")
+    decay_reasons: tuple[StateName, ...] = Field(default=(), max_length=16)
+    eb_conditions: tuple[int, ...] = Field(
+        default=(), max_length=6, description="EB conditions 1–6 that hold now"
+    )
+    etcs_isolated: bool
+    supervision_state: StateName = Field(description="Task B: monitoring, eb_demanded, decayed")
+    brake_state: StateName = Field(description="Task C's EB: released, braking, standstill, …")
+    etcs_state: StateName = Field(description="Task C's relay: inserted, isolating, isolated, …")
+    standstill: bool
+    odometry_efficient: bool
+    speed_mps: NonNegativeFloat | None = Field(
+        default=None, description="The VC's own speed, from its tachometer board [m/s]"
+    )
+    replicas: int = Field(default=1, ge=1, le=2, description="1, or 2 in 2-out-of-2")
+    pair_tripped: bool = Field(
+        default=False, description="2oo2: a disagreement or a watchdog expiry braked the train"
+    )
+    operator_requests: tuple[OperatorRequest, ...] = Field(default=(), max_length=8)
+
+
 class StatusReport(Message):
     """Periodic status of one vehicle (the STR), published at the report interval."""
 
@@ -180,6 +244,19 @@ class StatusReport(Message):
     arrivals: tuple[ArrivalEstimate, ...] = Field(
         default=(), max_length=500, description="Estimated arrivals at the timing points ahead"
     )
+    vital_control: VitalControlStatus | None = Field(
+        default=None, description="The Vital Control module, on vehicles fitted with one"
+    )
+    permitted_speed_mps: NonNegativeFloat | None = Field(
+        default=None, description="ETCS permitted speed at the front end [m/s]"
+    )
+    intervention_speed_mps: NonNegativeFloat | None = Field(
+        default=None, description="ETCS intervention speed now [m/s]; None when unsupervised"
+    )
+    reference_speed_mps: NonNegativeFloat | None = Field(
+        default=None, description="The ADF's reference speed now (ODP in AD, target in RD) [m/s]"
+    )
+    train_hold: bool = Field(default=False, description="Held at the next stopping point")
 
 
 class EventSeverity(StrEnum):
@@ -228,8 +305,48 @@ class DisengageCommand(BaseModel):
     type: Literal["disengage"] = "disengage"
 
 
+class EmergencyBrakeCommand(BaseModel):
+    """The remote operator's emergency brake: relayed to the Vital Control, which applies it."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    type: Literal["emergency_brake"] = "emergency_brake"
+
+
+class OperatorConfirmCommand(BaseModel):
+    """The operator's answer to one Vital Control request (vigilance, EB rearm, ETCS isolation
+    or insertion), bound to the request's number so that it answers nothing newer."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    type: Literal["operator_confirm"] = "operator_confirm"
+    request: OperatorRequestKind
+    number: int = Field(ge=0, le=255, description="The number of the request answered")
+
+
+class SkipStopCommand(BaseModel):
+    """The driver's "Skip Stopping Point": run through a stopping point of the journey."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    type: Literal["skip_stop"] = "skip_stop"
+    timing_point_id: str = Field(min_length=1, max_length=64)
+
+
+class TrainHoldCommand(BaseModel):
+    """The ATO-TS's train hold: stay at the stopping point reached next until released."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    type: Literal["train_hold"] = "train_hold"
+    hold: bool
+
+
 CommandBody = Annotated[
-    PingCommand | RemoteDrivingTargetCommand | EngageCommand | DisengageCommand,
+    PingCommand
+    | RemoteDrivingTargetCommand
+    | EngageCommand
+    | DisengageCommand
+    | EmergencyBrakeCommand
+    | OperatorConfirmCommand
+    | SkipStopCommand
+    | TrainHoldCommand,
     Field(discriminator="type"),
 ]
 

@@ -7,6 +7,7 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import pytest
 import zenoh
@@ -43,9 +44,9 @@ def zenoh_pair() -> Iterator[tuple[zenoh.Session, zenoh.Session]]:
             yield first, second
 
 
-@pytest.fixture
-def router_endpoint() -> Iterator[str]:
-    """A Zenoh router running in this process on a free loopback port."""
+@contextmanager
+def running_router() -> Iterator[str]:
+    """A Zenoh router running in this process on a free loopback port, until the block ends."""
     endpoint = loopback_endpoint()
     stop, ready = threading.Event(), threading.Event()
     thread = threading.Thread(
@@ -56,6 +57,13 @@ def router_endpoint() -> Iterator[str]:
     yield endpoint
     stop.set()
     thread.join(WAIT_S)
+
+
+@pytest.fixture
+def router_endpoint() -> Iterator[str]:
+    """A Zenoh router running in this process on a free loopback port."""
+    with running_router() as endpoint:
+        yield endpoint
 
 
 def _postgres_database() -> Iterator[str]:

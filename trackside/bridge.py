@@ -14,6 +14,7 @@ onboard's acknowledgement.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from collections.abc import Callable
@@ -24,15 +25,20 @@ import zenoh
 
 from protocol import (
     LivelinessWatcher,
+    PayloadError,
+    TransportError,
     TypedPublisher,
     TypedQueryable,
     TypedSubscriber,
     declare_liveliness,
+    request,
 )
 from protocol import messages as m
 from protocol.registry import (
     ALIVE_ONBOARD,
     ALIVE_TRACKSIDE,
+    COMMAND,
+    EVENT,
     JOURNEY_PROFILE,
     JOURNEY_PROFILE_ACK,
     LINE_VERSION,
@@ -46,7 +52,11 @@ from trackside.session import SessionManager
 
 __all__ = ["VehicleSnapshot", "ZenohBridge"]
 
+_log = logging.getLogger(__name__)
+
 ChangeListener = Callable[[], None]
+StatusObserver = Callable[[m.StatusReport], object]
+EventObserver = Callable[[m.Event], object]
 LineVersionLookup = Callable[[str], str | None]
 """The current version of a line, ``None`` when the trackside does not hold it."""
 
@@ -83,6 +93,8 @@ class ZenohBridge:
         self._known: set[str] = set()
         self._alive: set[str] = set()
         self._listeners: list[ChangeListener] = []
+        self._status_observers: list[StatusObserver] = []
+        self._event_observers: list[EventObserver] = []
         self._status = TypedSubscriber(session, STATUS, on_message=self._on_status, clock=clock)
         self._liveliness = LivelinessWatcher(
             session, ALIVE_ONBOARD.format(vehicle="*"), self._on_liveliness
@@ -95,6 +107,9 @@ class ZenohBridge:
         )
         self._journey_acks = TypedSubscriber(
             session, JOURNEY_PROFILE_ACK, on_message=self._on_journey_ack, vehicle="*"
+        )
+        self._events = TypedSubscriber(
+            session, EVENT, on_message=self._on_event, max_queue=1, vehicle="*"
         )
         self._token = declare_liveliness(session, ALIVE_TRACKSIDE.format(instance=instance_id))
 
@@ -118,6 +133,25 @@ class ZenohBridge:
         with self._lock:
             if listener in self._listeners:
                 self._listeners.remove(listener)
+
+    def observe(
+        self, *, status: StatusObserver | None = None, event: EventObserver | None = None
+    ) -> None:
+        """Call ``status`` with every status report and ``event`` with every event whose key
+        names its own vehicle, on Zenoh's thread: observers must not block."""
+        with self._lock:
+            if status is not None:
+                self._status_observers.append(status)
+            if event is not None:
+                self._event_observers.append(event)
+
+    def _on_event(self, key: str, event: m.Event) -> None:
+        if event.vehicle_id != EVENT.parse(key)["vehicle"]:
+            return
+        with self._lock:
+            observers = list(self._event_observers)
+        for observer in observers:
+            observer(event)
 
     def _notify(self) -> None:
         with self._lock:
@@ -145,6 +179,10 @@ class ZenohBridge:
                 ack = self.sessions.on_status(report, report.sim_time_s)
             if ack is not None:
                 self._publisher(STATUS_ACK, report.vehicle_id).put(ack)
+            with self._lock:
+                observers = list(self._status_observers)
+            for observer in observers:
+                observer(report)
         self._notify()
 
     # -- session -------------------------------------------------------------------------------
@@ -223,6 +261,52 @@ class ZenohBridge:
                     return answered()
             return ack
 
+    # -- commands ------------------------------------------------------------------------------
+
+    def command(self, command: m.Command, *, timeout_s: float) -> m.CommandAck:
+        """Send a command and wait for the vehicle's acknowledgement. Raises
+        ``protocol.RequestTimeoutError`` when none came in ``timeout_s`` of wall time, other
+        ``protocol.ProtocolError`` when the answer was an error or not valid."""
+        ack: m.CommandAck = request(
+            self._zenoh, COMMAND, command, timeout_s=timeout_s, vehicle=command.vehicle_id
+        )
+        return ack
+
+    def command_async(
+        self, command: m.Command, on_done: Callable[[m.CommandAck | None], None], *,
+        timeout_s: float,
+    ) -> None:  # fmt: skip
+        """Send a command without waiting. ``on_done`` is called once, on Zenoh's thread, with
+        the acknowledgement, or with None when the query ended without a valid one."""
+        key = COMMAND.key(vehicle=command.vehicle_id)
+        finished = threading.Event()
+
+        def finish(ack: m.CommandAck | None) -> None:
+            if finished.is_set():
+                return
+            finished.set()
+            try:
+                on_done(ack)
+            except Exception:  # a consumer's bug must not kill Zenoh's thread
+                _log.exception("command callback for %s failed", key)
+
+        def on_reply(reply: zenoh.Reply) -> None:
+            if reply.ok is None:
+                _log.warning("%s: error reply to command %d", key, command.command_id)
+                return
+            try:
+                finish(COMMAND.decode_reply(reply.ok.payload.to_bytes()))
+            except PayloadError as exc:
+                _log.warning("%s: bad command reply dropped: %s", key, exc)
+
+        try:
+            self._zenoh.get(
+                key, zenoh.handlers.Callback(on_reply, lambda: finish(None)),
+                payload=COMMAND.encode(command), timeout=timeout_s,
+            )  # fmt: skip
+        except zenoh.ZError as exc:
+            raise TransportError(f"command on {key} failed: {exc}") from exc
+
     def vehicle_ids(self) -> list[str]:
         with self._lock:
             return sorted(self._known)
@@ -252,6 +336,7 @@ class ZenohBridge:
 
     def close(self) -> None:
         self._token.undeclare()
+        self._events.close()
         self._handshakes.close()
         self._terminations.close()
         self._journey_acks.close()

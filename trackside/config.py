@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, SecretStr
-from pydantic_settings import BaseSettings, SettingsConfigDict
+from pydantic import Field, SecretStr, field_validator
+from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from protocol import DEFAULT_ROUTER_ENDPOINT, ZenohSettings
+from protocol.messages import OperatorRequestKind
 
 __all__ = ["DEFAULT_WEBUI_DIR", "Settings"]
 
@@ -38,6 +39,41 @@ class Settings(BaseSettings):
         default=None,
         description="RBC scenario script (YAML, JSON or TOML) run from start-up, on wall time",
     )
+
+    command_timeout_s: float = Field(
+        default=3.0, gt=0, le=30.0, description="Wait for a vehicle's command acknowledgement [s]"
+    )
+    login_max_failures: int = Field(
+        default=5, ge=1, description="Failed logins per user and per address before 429"
+    )
+    login_window_s: float = Field(default=300.0, gt=0, description="Login failure window [s]")
+    simulated_operators: Annotated[tuple[str, ...], NoDecode] = Field(
+        default=(),
+        description="Vehicles whose VC requests the simulated operator answers "
+        "(ATO_SIMULATED_OPERATORS=URV1,URV2); no other vehicle is answered",
+    )
+    simulated_operator_reaction_s: float = Field(
+        default=1.0, ge=0, description="Its reaction delay, in the vehicle's simulated time [s]"
+    )
+    simulated_operator_kinds: Annotated[tuple[OperatorRequestKind, ...], NoDecode] = Field(
+        default=(OperatorRequestKind.VIGILANCE, OperatorRequestKind.EB_REARM),
+        description="The requests it confirms (ETCS isolation/insertion only when listed)",
+    )
+    simulated_operator_thread: bool = Field(
+        default=True,
+        description="Step the simulated operator on a thread every 0.1 s of wall time; off, "
+        "whoever embeds the service steps it (the lockstep scenario runner)",
+    )
+    recorder_capacity: int = Field(
+        default=10_000, ge=1, description="Rows queued for the database before dropping"
+    )
+
+    @field_validator("simulated_operators", "simulated_operator_kinds", mode="before")
+    @classmethod
+    def _comma_separated(cls, value: Any) -> Any:
+        if isinstance(value, str):
+            return tuple(part.strip() for part in value.split(",") if part.strip())
+        return value
 
     def zenoh(self) -> ZenohSettings:
         return ZenohSettings(

@@ -11,7 +11,9 @@
     ├── InvalidRequestError (ValueError)   values the service cannot act on (a bad range)
     │   └── MovementAuthorityRefusedError  the RBC cannot issue or change an MA so
     │       └── EndOfAuthorityBehindVehicleError   the EoA at or behind the vehicle's position
-    └── RbcScenarioError (ValueError)      an RBC scenario script that does not load or validate
+    ├── RbcScenarioError (ValueError)      an RBC scenario script that does not load or validate
+    ├── VehicleTimeoutError (TimeoutError) the vehicle did not answer a command in time
+    └── VehicleLinkError                   a command could not be sent, or its answer was bad
 
 The services also let trackdb's errors through (``trackdb.LineValidationError``,
 ``trackdb.LineNotFoundError``, ``trackdb.LineConflictError``); the routes map them too.
@@ -30,6 +32,8 @@ __all__ = [
     "PermissionDeniedError",
     "RbcScenarioError",
     "TracksideError",
+    "VehicleLinkError",
+    "VehicleTimeoutError",
 ]
 
 
@@ -80,3 +84,11 @@ class RbcScenarioError(TracksideError, ValueError):
     def __init__(self, message: str, problems: list[str] | None = None) -> None:
         super().__init__(message)
         self.problems = problems or [message]
+
+
+class VehicleTimeoutError(TracksideError, TimeoutError):
+    """The vehicle did not answer in time; what it did is unknown."""
+
+
+class VehicleLinkError(TracksideError):
+    """The command could not be sent, or the vehicle's answer was an error or not valid."""

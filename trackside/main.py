@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import gc
 import logging
 import time
 from collections.abc import AsyncIterator
 from contextlib import AbstractContextManager, asynccontextmanager, nullcontext
 from functools import partial
+from importlib import resources
+from pathlib import Path
 
 import zenoh
 from fastapi import APIRouter, FastAPI
@@ -18,16 +21,27 @@ from protocol import open_session
 from protocol.messages import StatusReport
 from trackdb import LineNotFoundError
 from trackdb.storage import current_version, line_versions
+from trackside.api.routes import audit as audit_routes
 from trackside.api.routes import auth, journeys, lines, rbc, vehicles, ws
 from trackside.api.routes import users as users_routes
 from trackside.bridge import ZenohBridge
 from trackside.config import Settings
 from trackside.db import create_database_engine, migrate
+from trackside.live import LiveHub
 from trackside.models import Role
+from trackside.ratelimit import LoginLimiter
 from trackside.rbc import LineInfo, RbcEmulator
 from trackside.rbc_scenario import RbcScenarioRunner, RbcScenarioThread, load_scenario
+from trackside.recorder import Recorder
+from trackside.services import audit, users
 from trackside.services import lines as lines_service
-from trackside.services import users
+from trackside.services.commands import CommandService
+from trackside.simulated_operator import (
+    SIMULATED_OPERATOR,
+    OperatorAnswer,
+    SimulatedOperator,
+    SimulatedOperatorThread,
+)
 
 __all__ = ["create_app", "main"]
 
@@ -78,6 +92,47 @@ def _seed_lines(settings: Settings, factory: sessionmaker[Session]) -> None:
             _log.info("imported seed lines: %s", ", ".join(imported))
 
 
+def _plotly_js() -> Path:
+    """Where the installed ``plotly`` wheel keeps its browser bundle."""
+    bundle = resources.files("plotly") / "package_data" / "plotly.min.js"
+    return Path(str(bundle))
+
+
+def _audit_answer(recorder: Recorder, answer: OperatorAnswer) -> None:
+    """Queue the audit entry of a simulated operator's answer (called on Zenoh's thread)."""
+    ack = answer.ack
+    result = (
+        audit.AuditResult.TIMEOUT if ack is None
+        else audit.AuditResult.ACCEPTED if ack.accepted else audit.AuditResult.REFUSED
+    )  # fmt: skip
+    recorder.offer(
+        audit.audit_entry(
+            user=SIMULATED_OPERATOR, vehicle_id=answer.command.vehicle_id,
+            action=audit.command_action(answer.command.body),
+            request=answer.command.body.model_dump(mode="json"), result=result,
+            detail=None if ack is None else ack.reason,
+        )
+    )  # fmt: skip
+
+
+def _simulated_operator(
+    settings: Settings, bridge: ZenohBridge, recorder: Recorder
+) -> SimulatedOperatorThread | None:
+    if not settings.simulated_operators:
+        return None
+    operator = SimulatedOperator(
+        lambda command, on_done: bridge.command_async(
+            command, on_done, timeout_s=settings.command_timeout_s
+        ),
+        settings.simulated_operators, reaction_s=settings.simulated_operator_reaction_s,
+        kinds=settings.simulated_operator_kinds,
+        on_answer=partial(_audit_answer, recorder), first_command_id=time.time_ns() // 1000,
+    )  # fmt: skip
+    return SimulatedOperatorThread(
+        operator, partial(_reported_status, bridge), start=settings.simulated_operator_thread
+    )
+
+
 def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None) -> FastAPI:
     """Build the service. Without ``zenoh_session`` it opens (and closes) its own."""
 
@@ -91,6 +146,13 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
         _seed_lines(settings, factory)
         app.state.settings = settings
         app.state.session_factory = factory
+        app.state.login_limiter = LoginLimiter(
+            max_failures=settings.login_max_failures, window_s=settings.login_window_s
+        )
+        recorder = Recorder(factory, capacity=settings.recorder_capacity)
+        app.state.recorder = recorder
+        hub = LiveHub()
+        app.state.live = hub
         sessions: AbstractContextManager[zenoh.Session] = (
             nullcontext(zenoh_session)
             if zenoh_session is not None
@@ -103,6 +165,13 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
                 line_version=lambda line_id: _line_version(factory, line_id),
             )
             app.state.bridge = bridge
+            bridge.observe(status=recorder.offer_status, event=recorder.offer_event)
+            bridge.observe(status=hub.publish_status, event=hub.publish_event)
+            app.state.commands = CommandService(
+                factory, bridge, timeout_s=settings.command_timeout_s
+            )
+            operator = _simulated_operator(settings, bridge, recorder)
+            app.state.simulated_operator = operator
             started_s = time.monotonic()
             rbc_emulator = RbcEmulator(
                 clock=lambda: time.monotonic() - started_s,
@@ -114,13 +183,19 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
             scenario = None
             if script is not None:
                 scenario = RbcScenarioThread(RbcScenarioRunner(script, rbc_emulator))
+            # What start-up built lives as long as the service: keep it out of the cyclic
+            # collector's full passes, which otherwise stall requests for tens of ms.
+            gc.freeze()
             try:
                 yield
             finally:
                 if scenario is not None:
                     scenario.close()
+                if operator is not None:
+                    operator.close()
                 rbc_emulator.close()
                 bridge.close()
+                recorder.close()
                 engine.dispose()
 
     app = FastAPI(
@@ -136,6 +211,7 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
     api.include_router(lines.router)
     api.include_router(journeys.router)
     api.include_router(rbc.router)
+    api.include_router(audit_routes.router)
     api.include_router(ws.router)
     app.include_router(api)
 
@@ -151,6 +227,11 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
         @app.get("/", include_in_schema=False)
         def index() -> FileResponse:
             return FileResponse(webui / "index.html")
+
+        @app.get("/vendor/plotly.min.js", include_in_schema=False)
+        def plotly_js() -> FileResponse:
+            """The charting library, as its PyPI wheel ships it (not copied into the repo)."""
+            return FileResponse(_plotly_js(), media_type="text/javascript")
 
     return app
 

@@ -5,10 +5,29 @@ from __future__ import annotations
 from datetime import datetime
 from enum import StrEnum
 
-from sqlalchemy import Boolean, DateTime, ForeignKey, Integer, String, Text, UniqueConstraint
+from sqlalchemy import (
+    Boolean,
+    DateTime,
+    Float,
+    ForeignKey,
+    Integer,
+    String,
+    Text,
+    UniqueConstraint,
+)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
-__all__ = ["ApiToken", "Base", "JourneyRow", "Role", "User"]
+__all__ = [
+    "ApiToken",
+    "AuditEntry",
+    "Base",
+    "JourneyRow",
+    "Role",
+    "TelemetrySample",
+    "User",
+    "VehicleEvent",
+    "VehicleHold",
+]
 
 
 class Role(StrEnum):
@@ -60,3 +79,65 @@ class JourneyRow(Base):
     document: Mapped[str] = mapped_column(Text, nullable=False)
     created_by: Mapped[str] = mapped_column(String(64), nullable=False)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False)
+
+
+class VehicleHold(Base):
+    """Who holds a vehicle: only the holder's commands reach it (one driver at a time)."""
+
+    __tablename__ = "vehicle_holds"
+
+    vehicle_id: Mapped[str] = mapped_column(String(32), primary_key=True)
+    username: Mapped[str] = mapped_column(String(64), nullable=False)
+    since: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False)
+
+
+class AuditEntry(Base):
+    """One command or hold change: who, when, what (the request as JSON), and what came of it."""
+
+    __tablename__ = "audit_log"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False)
+    username: Mapped[str] = mapped_column(String(64), nullable=False)
+    vehicle_id: Mapped[str | None] = mapped_column(String(32), nullable=True, index=True)
+    action: Mapped[str] = mapped_column(String(64), nullable=False)
+    request: Mapped[str] = mapped_column(Text, nullable=False)
+    result: Mapped[str] = mapped_column(String(16), nullable=False)
+    detail: Mapped[str | None] = mapped_column(Text, nullable=True)
+
+
+class VehicleEvent(Base):
+    """One onboard event, as received."""
+
+    __tablename__ = "vehicle_events"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    vehicle_id: Mapped[str] = mapped_column(String(32), nullable=False, index=True)
+    seq: Mapped[int] = mapped_column(Integer, nullable=False)
+    sim_time_s: Mapped[float] = mapped_column(Float, nullable=False)
+    received_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False)
+    severity: Mapped[str] = mapped_column(String(16), nullable=False)
+    code: Mapped[str] = mapped_column(String(64), nullable=False)
+    text: Mapped[str] = mapped_column(Text, nullable=False)
+
+
+class TelemetrySample(Base):
+    """A vehicle's status, kept once per second of its simulated time."""
+
+    __tablename__ = "telemetry"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    vehicle_id: Mapped[str] = mapped_column(String(32), nullable=False, index=True)
+    sim_time_s: Mapped[float] = mapped_column(Float, nullable=False)
+    received_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False)
+    position_m: Mapped[float] = mapped_column(Float, nullable=False)
+    speed_mps: Mapped[float] = mapped_column(Float, nullable=False)
+    traction_force_n: Mapped[float] = mapped_column(Float, nullable=False)
+    reference_speed_mps: Mapped[float | None] = mapped_column(Float, nullable=True)
+    permitted_speed_mps: Mapped[float | None] = mapped_column(Float, nullable=True)
+    intervention_speed_mps: Mapped[float | None] = mapped_column(Float, nullable=True)
+    ato_state: Mapped[str] = mapped_column(String(16), nullable=False)
+    etcs_mode: Mapped[str] = mapped_column(String(16), nullable=False)
+    sc_state: Mapped[str] = mapped_column(String(16), nullable=False)
+    eb: Mapped[bool] = mapped_column(Boolean, nullable=False)
+    journey_id: Mapped[str | None] = mapped_column(String(64), nullable=True)

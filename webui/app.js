@@ -1,14 +1,12 @@
-// Fleet page of the ATO-TS console: sign in, then show live vehicles pushed over WebSocket.
-"use strict";
+// Entry point of the ATO-TS console: sign-in, and the views by URL hash
+// (#/fleet, #/vehicle/ID, #/planner, #/report/ID). Plain ES modules, no build step.
+import { api, setUnauthorisedHandler, token } from "./api.js";
+import { DriverView } from "./driver.js";
+import { FleetView } from "./fleet.js";
+import { PlannerView } from "./planner.js";
+import { ReportView } from "./report.js";
 
-const tokenKey = "ato.token";
 const $ = (selector) => document.querySelector(selector);
-
-function showFleet(visible) {
-  $("#login-panel").hidden = visible;
-  $("#fleet-panel").hidden = !visible;
-  $("#logout").hidden = !visible;
-}
 
 function setConnection(online) {
   const badge = $("#connection");
@@ -16,76 +14,46 @@ function setConnection(online) {
   badge.className = "badge " + (online ? "on" : "off");
 }
 
-function cell(text, numeric) {
-  const td = document.createElement("td");
-  td.textContent = text;
-  if (numeric) td.className = "num";
-  return td;
+const views = {
+  fleet: new FleetView(setConnection),
+  driver: new DriverView(setConnection),
+  planner: new PlannerView(),
+  report: new ReportView(),
+};
+let current = null;
+
+function route() {
+  const parts = location.hash.replace(/^#\/?/, "").split("/").map(decodeURIComponent);
+  const name = { vehicle: "driver", planner: "planner", report: "report" }[parts[0]] || "fleet";
+  if (current) current.hide();
+  for (const panel of document.querySelectorAll("[data-view]")) panel.hidden = panel.dataset.view !== name;
+  current = views[name];
+  current.show(parts[1]);
 }
 
-function renderFleet(vehicles) {
-  const body = $("#fleet tbody");
-  body.replaceChildren();
-  $("#fleet-empty").hidden = vehicles.length > 0;
-  for (const vehicle of vehicles) {
-    const s = vehicle.status;
-    const row = document.createElement("tr");
-    row.dataset.vehicle = vehicle.id;
-    row.className = vehicle.alive ? "alive" : "dead";
-    row.append(
-      cell(vehicle.id),
-      cell(vehicle.alive ? "yes" : "no"),
-      cell(s ? s.line_id : "–"),
-      cell(s ? s.position_m.toFixed(1) : "–", true),
-      cell(s ? (s.speed_mps * 3.6).toFixed(1) : "–", true),
-      cell(s ? s.ato_state : "–"),
-      cell(s ? s.etcs_mode : "–"),
-      cell(s ? s.sc_state : "–"),
-      cell(s ? s.sim_time_s.toFixed(1) : "–", true),
-    );
-    row.querySelector("td:nth-child(4)").dataset.field = "position";
-    row.querySelector("td:nth-child(5)").dataset.field = "speed";
-    body.append(row);
-  }
+function signedIn(visible) {
+  $("#login-panel").hidden = visible;
+  $("#logout").hidden = !visible;
+  $("#nav").hidden = !visible;
+  if (!visible) for (const panel of document.querySelectorAll("[data-view]")) panel.hidden = true;
 }
 
-let socket = null;
-let retry = null;
-
-function connect(token) {
-  const scheme = location.protocol === "https:" ? "wss" : "ws";
-  socket = new WebSocket(`${scheme}://${location.host}/api/v1/ws/fleet?token=${encodeURIComponent(token)}`);
-  socket.onopen = () => setConnection(true);
-  socket.onmessage = (event) => {
-    const frame = JSON.parse(event.data);
-    if (frame.type === "fleet") renderFleet(frame.vehicles);
-  };
-  socket.onclose = (event) => {
-    setConnection(false);
-    if (event.code === 1008) { signOut(); return; }
-    retry = setTimeout(() => connect(token), 1000);
-  };
-}
-
-async function fetchFleet(token) {
-  const response = await fetch("/api/v1/vehicles", { headers: { Authorization: `Bearer ${token}` } });
-  if (response.status === 401) { signOut(); return; }
-  if (response.ok) renderFleet(await response.json());
-}
-
-function start(token) {
-  showFleet(true);
-  fetchFleet(token);
-  connect(token);
+function start() {
+  signedIn(true);
+  route();
 }
 
 function signOut() {
-  sessionStorage.removeItem(tokenKey);
-  clearTimeout(retry);
-  if (socket) { socket.onclose = null; socket.close(); socket = null; }
+  const saved = token.get();
+  token.clear();
+  if (current) current.hide();
+  current = null;
   setConnection(false);
-  showFleet(false);
+  signedIn(false);
+  if (saved) fetch("/api/v1/auth/logout", { method: "POST", headers: { Authorization: `Bearer ${saved}` } });
 }
+
+setUnauthorisedHandler(() => { if (token.get()) signOut(); });
 
 $("#login-form").addEventListener("submit", async (event) => {
   event.preventDefault();
@@ -96,12 +64,13 @@ $("#login-form").addEventListener("submit", async (event) => {
     return;
   }
   $("#login-error").textContent = "";
-  const { access_token: token } = await response.json();
-  sessionStorage.setItem(tokenKey, token);
-  start(token);
+  const { access_token: accessToken } = await response.json();
+  token.set(accessToken);
+  $("#whoami").textContent = new FormData(event.target).get("username");
+  start();
 });
 
 $("#logout").addEventListener("click", signOut);
+window.addEventListener("hashchange", () => { if (token.get()) route(); });
 
-const saved = sessionStorage.getItem(tokenKey);
-if (saved) start(saved);
+if (token.get()) start();

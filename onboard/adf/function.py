@@ -28,7 +28,7 @@ from onboard.adf.autonomous import AutonomousDriving
 from onboard.adf.journey import JourneyPlan, JourneyStop
 from onboard.adf.nmpc import NmpcConfig, NmpcController
 from onboard.adf.odp import InfeasibleLegError, OdpLeg, OdpPlan
-from onboard.adf.odp_energy import MRSP_MARGIN_MPS, replan_from_state
+from onboard.adf.odp_energy import MAX_BRAKING_MPS2, MRSP_MARGIN_MPS, replan_from_state
 from onboard.adf.rd_controller import RemoteDrivingController
 from onboard.adf.supervisor import ModeRequest, SupervisoryController
 from onboard.plant.point_mass import GRAVITY_MPS2, PointMassParameters
@@ -46,6 +46,11 @@ EOA_MOVED_M = 5.0
 ODOMETRY_SHARE = 0.06
 """The SvL seen from the max-safe front end comes closer by 5 % of the distance run (the
 odometry interval grows): the plan anticipates it, with a margin."""
+AUTHORITY_BRAKING_MPS2 = 0.35
+"""The plan's braking for an EoA stop: half the service brake deceleration, so that the plan
+stays under the ETCS permitted curve, whose SBD uses the full A_brake_service but starts the
+reaction and build-up times earlier (a stop for the EoA is not a stop planned at the timetable's
+pace: it comes when the MA is shortened, and must never bring an ETCS intervention)."""
 PASSED_M = 10.0
 DELAY_PROBE_M = 0.5
 
@@ -88,6 +93,10 @@ class DrivingFunction:
         """How many stops of the journey have been served (stopped at, or passed)."""
         """Where the current plan stops for the EoA (distance travelled), when it does."""
         self.replans = 0
+        self.skipped: set[str] = set()
+        """Timing points the driver asked to run through ("Skip Stopping Point")."""
+        self.hold = False
+        """Train hold: stay at the stopping point reached next until released."""
 
     # -- requests ------------------------------------------------------------------------------
 
@@ -108,6 +117,13 @@ class DrivingFunction:
             )
         self.sc.request(ModeRequest.REMOTE, now_s)
 
+    def restart_remote(self, target_mps: float, now_s: float, *, speed_mps: float) -> None:
+        """Remote driving again from the train's speed, after an emergency brake overrode the
+        manoeuvre: the reference starts where the train is, the integral from zero."""
+        self.remote_target_mps = target_mps
+        self.rd.reset(speed_mps)
+        self.sc.request(ModeRequest.REMOTE, now_s)
+
     def start_journey(self, journey: JourneyPlan, now_s: float, *, position_m: float) -> None:
         """Make ``journey`` the one to drive: its time and distance start here and now."""
         self.journey = journey
@@ -117,6 +133,8 @@ class DrivingFunction:
         self._eoa_stop_m = None
         self._served = 0
         self.nmpc.reset()
+        if self.skipped:
+            self._leave_for_next_stop(now_s, position_m=position_m, speed_mps=0.0)
 
     def engage(self, now_s: float) -> None:
         """Autonomous driving on the journey (hand-over from RD if remote driving). The journey
@@ -163,6 +181,42 @@ class DrivingFunction:
         self.autonomous.set_permitted_speed(self.permitted_speed_mps)
         self.fallback_active = True
 
+    @property
+    def served(self) -> int:
+        """How many stops of the journey have been served (stopped at, passed or skipped)."""
+        return self._served
+
+    def skip_stop(self, timing_point_id: str, now_s: float, *, position_m: float,
+                  speed_mps: float) -> None:  # fmt: skip
+        """Run through ``timing_point_id`` (checked by the caller: a stop ahead, not the last):
+        the current leg is replanned to the next stop not skipped, on its schedule if it can."""
+        self.skipped.add(timing_point_id)
+        if self.journey is not None and self.autonomous is not None:
+            self._leave_for_next_stop(now_s, position_m=position_m, speed_mps=speed_mps)
+
+    def set_hold(self, hold: bool, now_s: float, *, position_m: float, speed_mps: float) -> None:
+        """Train hold on or off. Released at a stop, the train leaves for the next one: the
+        current leg is replanned from standstill, on the schedule if it still can be."""
+        released = self.hold and not hold
+        self.hold = hold
+        if released and self.stopped_at(position_m, speed_mps) is not None:
+            self.nmpc.reset()
+            self._leave_for_next_stop(now_s, position_m=position_m, speed_mps=speed_mps)
+
+    def resume_journey(self, now_s: float, *, position_m: float, speed_mps: float) -> None:
+        """Back on the journey after a cancelled fallback stop: the current leg is replanned to
+        the next stop, on its schedule if it still can be."""
+        self.fallback_active = False
+        self._leave_for_next_stop(now_s, position_m=position_m, speed_mps=speed_mps)
+
+    def _leave_for_next_stop(self, now_s: float, *, position_m: float, speed_mps: float) -> None:
+        stop = self.next_stop(position_m)
+        if stop is None or self.fallback_active:
+            return
+        self._eoa_stop_m = None
+        self._replan(now_s, position_m - self._origin_m, speed_mps, stop.distance_m,
+                     arrival_s=stop.arrival_s)  # fmt: skip
+
     # -- journey progress ----------------------------------------------------------------------
 
     def next_stop(self, position_m: float) -> JourneyStop | None:
@@ -170,8 +224,14 @@ class DrivingFunction:
         if self.journey is None:
             return None
         self._update_served(position_m, speed_mps=math.inf)
-        stops = self.journey.stops
-        return stops[self._served] if self._served < len(stops) else None
+        return next(iter(self._stops_ahead()), None)
+
+    def _stops_ahead(self) -> list[JourneyStop]:
+        """The stops not yet served, the skipped ones left out."""
+        assert self.journey is not None
+        return [
+            s for s in self.journey.stops[self._served :] if s.timing_point_id not in self.skipped
+        ]
 
     def _update_served(self, position_m: float, speed_mps: float) -> None:
         if self.journey is None:
@@ -183,7 +243,8 @@ class DrivingFunction:
             stopped = speed_mps <= STANDSTILL_MPS and abs(stop.distance_m - travelled) <= (
                 STOP_TOLERANCE_M
             )
-            if not (stopped or travelled > stop.distance_m + PASSED_M):
+            skipped = stop.timing_point_id in self.skipped and travelled > stop.distance_m
+            if not (stopped or skipped or travelled > stop.distance_m + PASSED_M):
                 return
             self._served += 1
 
@@ -206,10 +267,7 @@ class DrivingFunction:
                 low, high = (middle, high) if plan.reference(middle)[0] < ahead else (low, middle)
             reference_s = high
         delay = max(journey_s - reference_s, 0.0)
-        return [
-            (stop, max(stop.arrival_s + delay, journey_s))
-            for stop in self.journey.stops[self._served :]
-        ]
+        return [(stop, max(stop.arrival_s + delay, journey_s)) for stop in self._stops_ahead()]
 
     def stopped_at(self, position_m: float, speed_mps: float) -> JourneyStop | None:
         """The stop of the journey the vehicle stands at, if any."""
@@ -217,8 +275,20 @@ class DrivingFunction:
             return None
         travelled = position_m - self._origin_m
         for stop in self.journey.stops:
+            if stop.timing_point_id in self.skipped:
+                continue
             if abs(stop.distance_m - travelled) <= STOP_TOLERANCE_M:
                 return stop
+        return None
+
+    def reference_speed_mps(self, now_s: float) -> float | None:
+        """The reference the SC follows now [m/s]: the ODP's in AD, the RD target's in RD."""
+        state = self.state
+        if state in (ScState.AD, ScState.HRD2AD) and self.autonomous is not None:
+            # The plan's speed is never below zero, but its interpolation may round under it.
+            return max(float(self.autonomous.plan.reference(now_s - self._origin_s)[1]), 0.0)
+        if state in (ScState.RD, ScState.HAD2RD):
+            return max(float(self.rd.reference_speed_mps), 0.0)
         return None
 
     def journey_time_s(self, now_s: float) -> float:
@@ -269,6 +339,7 @@ class DrivingFunction:
                 start_chainage_m=self.journey.start_chainage_m, distance_m=travelled_m,
                 speed_mps=speed_mps, stop_distance_m=stop_m - travelled_m,
                 cruise_mps=max(cap, speed_mps), arrival_s=arrival_s,
+                braking_mps2=AUTHORITY_BRAKING_MPS2 if arrival_s is None else MAX_BRAKING_MPS2,
             )  # fmt: skip
         except InfeasibleLegError:
             return  # too close to change: the ceilings and ETCS still hold the train back
@@ -324,7 +395,7 @@ class DrivingFunction:
         demand = low if force is None else min(max(force, low), high)
         if not traction_allowed:
             demand = min(demand, 0.0)
-        if service_brake:
+        if service_brake or (self.hold and self.stopped_at(position_m, speed_mps) is not None):
             demand = low
         self._last_force_n = demand
         return demand

@@ -484,6 +484,7 @@ def replan_from_state(
     stop_distance_m: float,
     cruise_mps: float,
     arrival_s: float | None = None,
+    braking_mps2: float = MAX_BRAKING_MPS2,
 ) -> OdpPlan:
     """A plan from the current reference (distance travelled and speed at ``now_s``) to a stop
     ``stop_distance_m`` further on: a shortened MA, an obstacle, the EoA after an ETCS
@@ -512,7 +513,7 @@ def replan_from_state(
     if profile is None:
         track = LegTrack(
             track_map, model, start_chainage_m=chainage, distance_m=stop_distance_m,
-            cap_mps=cruise_mps,
+            cap_mps=cruise_mps, braking_mps2=braking_mps2,
         )  # fmt: skip
         profile = build_profile(track, holding_speed_mps=cruise_mps, initial_speed_mps=speed_mps)
     return OdpPlan(

@@ -20,7 +20,8 @@ GoA4 choices (docs/ato_ob.md):
   journey, after a disengage, a fallback stop or a fault;
 - a lost trackside session while engaged does not disengage: the train runs on to the next
   stopping point and stops there (:attr:`AtoObOutput.stop_at_next_stopping_point`), then waits
-  in AV for the session and the remote driver;
+  in AV for the session and the remote driver; a session back before that stop (a trackside
+  restart, a short link outage) cancels the fallback and the journey goes on;
 - after the 5 s of DE, and in FA, the ATO-OB commands the full service brake: there is no driver
   on board to take over. It never commands the EB (DOMAIN.md §2.1).
 """
@@ -170,7 +171,11 @@ class AtoObController:
                 self._etcs is not None and self._etcs.mode is EtcsMode.AD
             )
             self._moved_since_engaged |= not inputs.standstill
-            self._fallback_stop |= not inputs.trackside_session_alive
+            if not inputs.trackside_session_alive:
+                self._fallback_stop = True
+            elif not inputs.standstill:
+                # The session is back before the stop: the journey goes on as planned.
+                self._fallback_stop = False
         if inputs.remote_driving_selected:
             # The remote driver has taken the vehicle: it must not drive off on its own.
             self._continue_after_dwell = False

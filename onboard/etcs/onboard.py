@@ -184,8 +184,8 @@ class EtcsOnboard:
         self._roll_reference_m = position_m
         self._staff_responsible_start_m = position_m
         self._motion = MotionSupervisor(track_map, self.braking)
-        self._result: SupervisionResult | None = None
-        self.output = self._output(self._idle_result(0.0))
+        self._result: SupervisionResult = self._idle_result(0.0)
+        self.output = self._output(self._result)
 
     # -- state ----------------------------------------------------------------------------------
 
@@ -203,6 +203,11 @@ class EtcsOnboard:
     def odometry(self) -> ConfidenceInterval:
         """The confidence interval after the last cycle or balise group."""
         return self._interval
+
+    def intervention_speed_mps(self) -> float:
+        """The speed at which the last cycle's supervision would intervene [m/s]; inf when
+        nothing is supervised (IS). Computed on demand: a status value."""
+        return self._result.intervention_speed_mps()
 
     @property
     def standstill(self) -> bool:
@@ -317,6 +322,11 @@ class EtcsOnboard:
             raise TransitionRefusedError("a trip is acknowledged at standstill only")
         self._event(ModeCondition.TRIP_ACKNOWLEDGED, now_s)
 
+    @property
+    def isolated(self) -> bool:
+        """The ETCS-OB's power is cut (by the VC's relay): mode IS."""
+        return self._isolated
+
     def isolate(self, now_s: float) -> None:
         """ETCS isolated (the VC's relay): IS from any mode, commands dropped."""
         self._check_time(now_s)
@@ -408,7 +418,6 @@ class EtcsOnboard:
         if (
             self._mode in _SUPERVISED_MODES
             and self._authority is not None
-            and result is not None
             and result.monitoring is Monitoring.RELEASE_SPEED
             and location_m >= self._authority_locations()[0]
         ):
@@ -528,6 +537,7 @@ class EtcsOnboard:
             target=None,
             target_distance_m=None,
             release_speed_mps=None,
+            ceiling_intervention_mps=math.inf if self._mode is EtcsMode.IS else permitted_mps,
         )
 
     def _supervise(self) -> SupervisionResult:

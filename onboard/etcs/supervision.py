@@ -26,6 +26,7 @@ While a brake command is held the status stays Intervention.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
@@ -205,6 +206,24 @@ class SupervisionResult:
     target_distance_m: float | None
     """From the relevant front end to that target [m]."""
     release_speed_mps: float | None
+    ceiling_intervention_mps: float = math.inf
+    """The ceiling's EBI speed, or the release speed in its area [m/s]."""
+    intervention_targets: tuple[tuple[TargetLimits, float, float], ...] = ()
+    """Each supervised target with its distance [m] and the acceleration [m/s²]: what
+    :meth:`intervention_speed_mps` needs, kept so that it is computed only when asked for."""
+
+    def intervention_speed_mps(self) -> float:
+        """The speed at which supervision would intervene now [m/s]: the ceiling's EBI speed,
+        each target's EBI (SBI1 for the EoA, which has no EBI) at the front end, the release
+        speed (a status value: not used by the supervision itself)."""
+        speed = self.ceiling_intervention_mps
+        for limits, distance_m, acceleration_mps2 in self.intervention_targets:
+            limit = Limit.EBI if Limit.EBI in limits.limits else Limit.SBI1
+            speed = min(speed, max(
+                limits.target.speed_mps,
+                limits.speed_mps(limit, distance_m, acceleration_mps2=acceleration_mps2),
+            ))  # fmt: skip
+        return speed
 
 
 def supervise(
@@ -225,6 +244,8 @@ def supervise(
     )
     in_release = release is not None and release.contains(interval)
     permitted_mps = ceiling_speed_mps
+    intervention_mps = ceiling_speed_mps + dv_ebi_mps(ceiling_speed_mps, fixed)
+    intervention_targets: list[tuple[TargetLimits, float, float]] = []
     shown: tuple[float, float, Target] | None = None
     in_target_speed = False
     for limits in targets:
@@ -237,6 +258,7 @@ def supervise(
             limits.speed_mps(Limit.PERMITTED, distance_m, acceleration_mps2=acceleration_mps2),
         )
         permitted_mps = min(permitted_mps, target_permitted_mps)
+        intervention_targets.append((limits, distance_m, acceleration_mps2))
         if shown is None or target_permitted_mps < shown[0]:
             shown = (target_permitted_mps, distance_m, target)
         target_demand = target_speed_monitoring(
@@ -254,6 +276,7 @@ def supervise(
         monitoring = Monitoring.RELEASE_SPEED
         demand = demand.combined(release_speed_monitoring(speed_mps, release.speed_mps))
         permitted_mps = min(permitted_mps, release.speed_mps)
+        intervention_mps = min(intervention_mps, release.speed_mps)
         eoa = release.end_of_authority
         if shown is None or release.speed_mps <= shown[0]:
             shown = (release.speed_mps, eoa.location_m - interval.estimated_front_m, eoa)
@@ -265,6 +288,8 @@ def supervise(
         target=None if shown is None else shown[2],
         target_distance_m=None if shown is None else shown[1],
         release_speed_mps=None if release is None else release.speed_mps,
+        ceiling_intervention_mps=intervention_mps,
+        intervention_targets=tuple(intervention_targets),
     )
 
 

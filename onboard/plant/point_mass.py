@@ -124,14 +124,23 @@ class PointMassModel:
         *,
         gradient_permille: float = 0.0,
         curve_radius_m: float = math.inf,
+        emergency_brake: float = 0.0,
     ) -> None:
-        """Advance by ``dt_s`` [s] under a force demand [N] (positive traction, negative brake)."""
+        """Advance by ``dt_s`` [s] under a force demand [N] (positive traction, negative brake).
+
+        ``emergency_brake`` is the EB's share of the full brake force, 0 to 1, as the brake
+        pipe vents (the Vital Control's valves): it cuts traction at once and brakes at least
+        that hard, whatever the demand.
+        """
         p = self.parameters
         low, high = self.force_limits_n(self.speed_mps)
         demand = min(max(force_demand_n, low), high)
         blend = dt_s / (p.actuator_time_constant_s + dt_s)
         self.applied_force_n += (demand - self.applied_force_n) * blend
         self.applied_force_n = min(max(self.applied_force_n, low), high)
+        if emergency_brake > 0.0:
+            pipe_n = min(emergency_brake, 1.0) * p.max_brake_force_n
+            self.applied_force_n = min(self.applied_force_n, 0.0, -pipe_n)
 
         resistance = self.resistance_n(self.speed_mps, gradient_permille, curve_radius_m)
         net = self.applied_force_n - resistance

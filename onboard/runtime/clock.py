@@ -60,6 +60,10 @@ class RealTimeClock(Clock):
     ----------
     speed_factor
         Simulated seconds per wall second (1 for live driving).
+    spin_s
+        The last part of each wait is spent polling the clock instead of sleeping [s]: the OS
+        wakes a sleeper late by tens to hundreds of µs, a poll does not (at the price of a busy
+        core). 0 sleeps all the way.
     monotonic_ns
         The wall clock, injectable for tests.
     """
@@ -68,12 +72,16 @@ class RealTimeClock(Clock):
         self,
         speed_factor: float = 1.0,
         *,
+        spin_s: float = 0.0,
         monotonic_ns: Callable[[], int] = time.monotonic_ns,
     ) -> None:
         super().__init__()
         if not speed_factor > 0:
             raise ValueError(f"speed factor must be positive, got {speed_factor}")
+        if not 0.0 <= spin_s < 1.0:
+            raise ValueError(f"spin time must be in [0, 1) s, got {spin_s}")
         self.speed_factor = speed_factor
+        self.spin_ns = round(spin_s * NS_PER_S)
         self._monotonic_ns = monotonic_ns
         self._wall_origin_ns: int | None = None
         self._wake = threading.Event()
@@ -88,8 +96,11 @@ class RealTimeClock(Clock):
             raise ValueError(f"time cannot go back from {self._now_ns} to {t_ns} ns")
         deadline = self.wall_deadline_ns(t_ns)
         remaining = deadline - self._monotonic_ns()
-        if remaining > 0 and not self._wake.is_set():
-            self._wake.wait(remaining / NS_PER_S)
+        if remaining > self.spin_ns and not self._wake.is_set():
+            self._wake.wait((remaining - self.spin_ns) / NS_PER_S)
+        if self.spin_ns:
+            while self._monotonic_ns() < deadline and not self._wake.is_set():
+                pass
         self._now_ns = t_ns
         return self.lateness_ns(t_ns)
 

@@ -83,6 +83,8 @@ class Executive:
         self._queue: list[tuple[int, int, int, str]] = []
         self._order = 0
         self._stopped = False
+        self._real_time = isinstance(clock, RealTimeClock)
+        self._speed_factor = clock.speed_factor if isinstance(clock, RealTimeClock) else 1.0
 
     def add_task(
         self,
@@ -126,18 +128,22 @@ class Executive:
 
     def run_until(self, end_ns: int | None = None) -> None:
         """Run releases up to and including ``end_ns`` (forever if ``None``) or until stopped."""
-        while self._queue and not self._stopped:
-            release_ns = self._queue[0][0]
+        queue, tasks, clock = self._queue, self.tasks, self.clock
+        while queue and not self._stopped:
+            release_ns = queue[0][0]
             if end_ns is not None and release_ns > end_ns:
                 break
-            self.clock.advance_to(release_ns)
-            while self._queue and self._queue[0][0] == release_ns and not self._stopped:
-                _, _, _, name = heapq.heappop(self._queue)
-                task = self.tasks[name]
+            clock.advance_to(release_ns)
+            while queue and queue[0][0] == release_ns and not self._stopped:
+                _, _, _, name = heapq.heappop(queue)
+                task = tasks[name]
                 self._run(task, release_ns)
-                self._push(release_ns + task.period_ns, task)
-        if end_ns is not None and not self._stopped and end_ns > self.clock.now_ns:
-            self.clock.advance_to(end_ns)
+                self._order += 1
+                heapq.heappush(
+                    queue, (release_ns + task.period_ns, -task.priority, self._order, name)
+                )
+        if end_ns is not None and not self._stopped and end_ns > clock.now_ns:
+            clock.advance_to(end_ns)
 
     def _run(self, task: Task, release_ns: int) -> None:
         stats = self.stats[task.name]
@@ -147,14 +153,17 @@ class Executive:
         elapsed = self._perf_counter_ns() - started
         stats.releases += 1
         stats.exec_total_ns += elapsed
-        stats.exec_max_ns = max(stats.exec_max_ns, elapsed)
-        stats.lateness_total_ns += lateness
-        stats.lateness_max_ns = max(stats.lateness_max_ns, lateness)
-        if isinstance(self.clock, RealTimeClock):
+        if elapsed > stats.exec_max_ns:
+            stats.exec_max_ns = elapsed
+        if lateness:
+            stats.lateness_total_ns += lateness
+            if lateness > stats.lateness_max_ns:
+                stats.lateness_max_ns = lateness
+        if self._real_time and lateness + elapsed > task.period_ns / self._speed_factor:
             # Overrun: the body ended after the wall deadline of the task's next release.
-            if lateness + elapsed > task.period_ns / self.clock.speed_factor:
-                stats.overruns += 1
-        if len(stats.exec_samples_ns) < MAX_EXEC_SAMPLES:
-            stats.exec_samples_ns.append(elapsed)
+            stats.overruns += 1
+        samples = stats.exec_samples_ns
+        if len(samples) < MAX_EXEC_SAMPLES:
+            samples.append(elapsed)
         if self.trace is not None:
             self.trace.append((release_ns, task.name))

@@ -13,6 +13,10 @@ be safe. Three tasks on the executive, sharing no mutable state:
 - :mod:`~onboard.vc.task_c`: Task C (2 ms, after B), drives the valves and the relay;
 - :mod:`~onboard.vc.redundancy`: two replicas in 2-out-of-2 and their watchdogs;
   :mod:`~onboard.vc.datalog`: the black box (JSON Lines) and its reader;
+- :mod:`~onboard.vc.fused_speed`: what supervising the speed on the sensor-fusion estimate
+  gains, measured on the catalogue;
+- :mod:`~onboard.vc.installation`: the VC as fitted to a vehicle, its I/O wired to the plant,
+  the ETCS onboard and the BTM;
 - :mod:`~onboard.vc.fsm`: their transition tables; :mod:`~onboard.vc.ipc`: their mailboxes and
   messages; :mod:`~onboard.vc.module`: :class:`VitalControl`, which wires and registers them.
 
@@ -73,6 +77,13 @@ from onboard.vc.fsm import (
     select_rule,
     transition_coverage,
 )
+from onboard.vc.fused_speed import (
+    FUSED_COMPARISON_KEYS,
+    FusedComparison,
+    compare_fused_speed,
+    format_fused_comparison,
+    with_fused_speed,
+)
 from onboard.vc.hardware import (
     FRAME_NUMBER_MODULO,
     FULL_EB_DELAY_S,
@@ -88,6 +99,11 @@ from onboard.vc.hardware import (
     TachometerFaultMode,
     TachometerFrame,
     ValveCommand,
+)
+from onboard.vc.installation import (
+    IO_PRIORITY,
+    VcFaults,
+    VcInstallation,
 )
 from onboard.vc.ipc import (
     ActuationStatus,
@@ -187,6 +203,14 @@ from onboard.vc.task_c import (
 
 __all__ = [
     "ALL_TABLES",
+    "IO_PRIORITY",
+    "FUSED_COMPARISON_KEYS",
+    "FusedComparison",
+    "compare_fused_speed",
+    "format_fused_comparison",
+    "with_fused_speed",
+    "VcFaults",
+    "VcInstallation",
     "ATO_OB_PRIORITY",
     "CATALOGUE",
     "CONFIRMED_SECTIONS",

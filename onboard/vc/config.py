@@ -42,8 +42,9 @@ class VcConfig:
     """With ETCS isolated the VC brakes above 30 km/h (seed 004, S6.1)."""
     tachometer_period_s: float = 0.080
     """The odometry board sends a frame every 80 ms (seed 004)."""
-    tachometer_timeout_s: float = 0.100
-    """⚠ No frame for longer than this: the odometry is not efficient (one period + 20 ms)."""
+    tachometer_timeout_s: float = 0.096
+    """⚠ No frame for longer than this: the odometry is not efficient (1.2 periods: 20 % of
+    jitter allowed on the board's 80 ms)."""
     wheel_diameter_m: float = 0.84
     """⚠ Wheel diameter of the tachometer axles."""
     pulses_per_revolution: int = 256
@@ -62,9 +63,20 @@ class VcConfig:
     """⚠ After the rearm command the EB input must read "released" within this time."""
     sequence_modulo: int = 256
     """⚠ Sequence numbers are one byte and wrap."""
+    fused_speed_supervision: bool = False
+    """Beyond the seeds (issue 7, item 5): with ETCS isolated, supervise the speed limit on the
+    larger of the tachometer speed (every 80 ms) and the sensor-fusion speed (every tick it
+    comes); never less restrictive than the tachometer alone, and up to 120 ms sooner."""
+    fused_speed_timeout_s: float = 0.020
+    """⚠ A fused speed older than this is ignored (the tachometer alone supervises)."""
+    fused_speed_margin_mps: float = 0.10
+    """⚠ The fused speed is supervised with this margin added: about two standard deviations
+    of its error (0.2 km/h RMS), as ETCS adds its speed inaccuracy [m/s]."""
 
     def __post_init__(self) -> None:
         for item in fields(self):
+            if item.name == "fused_speed_supervision":
+                continue
             value = getattr(self, item.name)
             if not (math.isfinite(value) and value > 0):
                 raise VcInputError(f"{item.name} must be positive and finite, got {value}")

@@ -38,7 +38,13 @@ from onboard.vc.ipc import (
     VcEvent,
 )
 from onboard.vc.link import FaultyLink, LinkDirection, LinkFault, corrupt_response
-from onboard.vc.messages import AtoObResponse, DecayReason, Notification, VcRequest
+from onboard.vc.messages import (
+    AtoObResponse,
+    DecayReason,
+    EbCondition,
+    Notification,
+    VcRequest,
+)
 from onboard.vc.task_a import TaskA
 from onboard.vc.task_b import TaskB
 from onboard.vc.task_c import TaskC
@@ -68,6 +74,8 @@ class VcHardware:
     relay: RadioRelay
     tachometer_frames: MessageQueue[Delivery[TachometerFrame]] = field(default_factory=MessageQueue)
     balise_telegrams: MessageQueue[Delivery[TelegramHeader]] = field(default_factory=MessageQueue)
+    fused_speeds: MessageQueue[Delivery[float]] = field(default_factory=MessageQueue)
+    """The sensor-fusion speed [m/s], for ``VcConfig.fused_speed_supervision``."""
 
     @classmethod
     def emulated(
@@ -114,6 +122,8 @@ class VcOutputs:
     """The valves are de-energised (EB applied or being applied)."""
     system_decay: bool
     decay_reasons: tuple[DecayReason, ...]
+    eb_conditions: tuple[EbCondition, ...]
+    """The conditions behind the EB flag now raised."""
     etcs_isolated: bool
     """The radio relay as last re-read."""
     notifications: tuple[Notification, ...]
@@ -156,6 +166,7 @@ class VitalControl:
             requests_sent=requests_sent,
             tachometer_frames=hardware.tachometer_frames,
             balise_telegrams=hardware.balise_telegrams,
+            fused_speeds=hardware.fused_speeds,
             read_eb_released=hardware.valves.eb_released,
             read_etcs_inserted=hardware.relay.inserted,
             actuation=actuation,
@@ -227,6 +238,7 @@ class VitalControl:
             eb_commanded=not (c.valves_energised if c else False),
             system_decay=bool(decay_reasons) or (c is not None and c.system_decay),
             decay_reasons=decay_reasons,
+            eb_conditions=tuple(sorted(b.eb_conditions)) if b else (),
             etcs_isolated=b.etcs_isolated if b else not self.hardware.relay.commanded_inserted,
             notifications=request.notifications if request else (),
             task_a_state=self.task_a.fsm.state,

@@ -23,6 +23,7 @@ exist.
 from __future__ import annotations
 
 import math
+import random
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
@@ -30,12 +31,20 @@ from onboard.etcs.balises import TelegramHeader
 from onboard.etcs.values import URV_TRAIN_DATA
 from onboard.runtime import Executive, SimClock
 from onboard.runtime.clock import NS_PER_S
+from onboard.vc._exceptions import ScenarioError
 from onboard.vc.config import KMH
 from onboard.vc.fsm import FsmCoverage, FsmTransition, transition_coverage
-from onboard.vc.hardware import PipeFault, RelayFault, TachometerBoard, TachometerFault
+from onboard.vc.hardware import (
+    EmergencyBrakeValves,
+    PipeFault,
+    RelayFault,
+    TachometerBoard,
+    TachometerFault,
+)
 from onboard.vc.ipc import Delivery, VcEvent, VcEventKind
 from onboard.vc.link import LinkFault
 from onboard.vc.module import TASK_B_PRIORITY, VcHardware, VitalControl
+from onboard.vc.redundancy import PairEvent, TwoOutOfTwo
 from onboard.vc.responder import AtoObResponder, ResponderFault
 from onboard.vc.scenarios import (
     SEED_HAZARDOUS_COUNTS,
@@ -59,6 +68,13 @@ __all__ = [
 ]
 
 SURROUNDINGS_PRIORITY = TASK_B_PRIORITY + 10
+FUSION_LAG_S = 0.010
+"""The sensor-fusion speed lags the truth by one IMU period (100 Hz) [s]."""
+FUSION_SPEED_SIGMA_MPS = 0.05
+"""⚠ Its noise: about the sensor-fusion issue's 0.2 km/h RMS speed error [m/s]."""
+FUSION_CORRELATION_S = 1.0
+"""⚠ A Kalman filter's speed error drifts slowly: a first-order Gauss–Markov error [s]."""
+EARLY_OVERSPEED_S = 0.5
 ATO_OB_PRIORITY = 0
 STEP_S = 0.002
 MOVING_MPS = 0.01
@@ -118,11 +134,21 @@ class TrainMotion:
 
 
 class _Surroundings:
-    """Everything around the VC in a scenario: the train, the odometry board, the BTM."""
+    """Everything around the VC in a scenario: the train, the odometry board, the BTM and, with
+    ``fused_speed_supervision``, the sensor-fusion speed. One board feeds every replica."""
 
-    def __init__(self, scenario: Scenario, hardware: VcHardware) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        boards: Sequence[VcHardware],
+        valves: EmergencyBrakeValves,
+        *,
+        fusion_seed: int = 0,
+    ) -> None:
         self.scenario = scenario
-        self.hardware = hardware
+        self.boards = tuple(boards)
+        self.valves = valves
+        self.relay = self.boards[0].relay
         self.train = TrainMotion()
         config = scenario.config
         self.board = TachometerBoard(
@@ -132,6 +158,8 @@ class _Surroundings:
         )
         self._targets = sorted(scenario.driver, key=lambda t: t.from_s)
         self._telegrams = sorted(scenario.balise_telegrams)
+        self._fusion_noise = random.Random(fusion_seed)
+        self._fusion_error_mps = 0.0
         self.speeds_mps: list[float] = []
         """The true speed at each 2 ms step."""
         self.overspeed_s: float | None = None
@@ -145,7 +173,7 @@ class _Surroundings:
 
     def step_ns(self, release_ns: int) -> None:
         now_s = release_ns / NS_PER_S
-        valves, relay = self.hardware.valves, self.hardware.relay
+        valves, relay = self.valves, self.relay
         before_mps = self.train.speed_mps
         self.train.advance(
             now_s,
@@ -159,12 +187,26 @@ class _Surroundings:
         if self.overspeed_s is None and speed > limit >= before_mps and not relay.inserted(now_s):
             self.overspeed_s = now_s - STEP_S * (speed - limit) / (speed - before_mps)
         frame = self.board.poll(now_s, self.train.distance_m)
-        if frame is not None:
-            self.hardware.tachometer_frames.put(Delivery(frame, now_s))
+        fused = self._fused_speed_mps() if self.scenario.config.fused_speed_supervision else None
         while self._telegrams and self._telegrams[0][0] <= now_s:
             _, group = self._telegrams.pop(0)
             header = TelegramHeader(nid_bg=group, q_link=1)
-            self.hardware.balise_telegrams.put(Delivery(header, now_s))
+            for hardware in self.boards:
+                hardware.balise_telegrams.put(Delivery(header, now_s))
+        for hardware in self.boards:
+            if frame is not None:
+                hardware.tachometer_frames.put(Delivery(frame, now_s))
+            if fused is not None:
+                hardware.fused_speeds.put(Delivery(fused, now_s))
+
+    def _fused_speed_mps(self) -> float:
+        """The sensor fusion's speed: the true speed one IMU period ago, with its error."""
+        lag = round(FUSION_LAG_S / STEP_S)
+        truth = self.speeds_mps[max(0, len(self.speeds_mps) - 1 - lag)]
+        keep = math.exp(-STEP_S / FUSION_CORRELATION_S)
+        innovation = self._fusion_noise.gauss(0.0, FUSION_SPEED_SIGMA_MPS)
+        self._fusion_error_mps = keep * self._fusion_error_mps + math.sqrt(1 - keep**2) * innovation
+        return truth + self._fusion_error_mps
 
     def speed_at(self, time_s: float) -> float:
         index = min(len(self.speeds_mps) - 1, max(0, round(time_s / STEP_S)))
@@ -194,6 +236,8 @@ class ScenarioResult:
     decay_reasons: tuple[str, ...]
     events: tuple[VcEvent, ...]
     transitions: tuple[FsmTransition, ...]
+    pair_events: tuple[PairEvent, ...] = ()
+    """2-out-of-2 only: the pair's events (replica EB, disagreement, watchdog)."""
 
     @property
     def passed(self) -> bool:
@@ -223,6 +267,21 @@ class ScenarioResult:
         return self._since(self.decay_evidence_s, self.decay_s)
 
 
+def _crossing_ahead_s(scenario: Scenario, surroundings: _Surroundings) -> float | None:
+    """When the true speed would have crossed the limit, had the EB not come first: the first
+    EB command on an accelerating train, extrapolated at its acceleration."""
+    limit = scenario.config.speed_limit_etcs_isolated_mps
+    for command in surroundings.valves.commands:
+        index = round(command.time_s / STEP_S)
+        if command.energised or index < 2 or index >= len(surroundings.speeds_mps):
+            continue
+        speeds = surroundings.speeds_mps
+        acceleration = (speeds[index - 1] - speeds[index - 2]) / STEP_S
+        if acceleration > 0 and speeds[index] > limit - 1.0:
+            return command.time_s + (limit - speeds[index]) / acceleration
+    return None
+
+
 def _hazard_s(scenario: Scenario, vc: VitalControl, surroundings: _Surroundings) -> float | None:
     hazard = scenario.hazard
     if hazard is None:
@@ -230,12 +289,12 @@ def _hazard_s(scenario: Scenario, vc: VitalControl, surroundings: _Surroundings)
     if hazard.kind is HazardKind.AT:
         return hazard.at_s
     if hazard.kind is HazardKind.OVERSPEED:
-        return surroundings.overspeed_s
+        return surroundings.overspeed_s or _crossing_ahead_s(scenario, surroundings)
     if hazard.kind is HazardKind.RELAY_COMMAND:
         commands = vc.hardware.relay.commands
         return commands[0][0] if commands else None
     rearms = [
-        c.time_s for c in vc.hardware.valves.commands if c.energised and c.time_s >= hazard.at_s
+        c.time_s for c in surroundings.valves.commands if c.energised and c.time_s >= hazard.at_s
     ]
     return rearms[0] if rearms else None
 
@@ -254,10 +313,9 @@ def _classify(
     return OutcomeClass.EB_SAFE_RECOVERY if eb_commands else OutcomeClass.NONE
 
 
-def run_scenario(scenario: Scenario) -> ScenarioResult:
-    """Run ``scenario`` in lockstep for its duration; measure and classify it."""
+def _hardware(scenario: Scenario) -> VcHardware:
     faults = scenario.faults
-    hardware = VcHardware.emulated(
+    return VcHardware.emulated(
         link_delay_s=scenario.link_delay_s,
         link_faults=[f for f in faults if isinstance(f, LinkFault)],
         venting_s=scenario.full_eb_delay_s,
@@ -265,33 +323,69 @@ def run_scenario(scenario: Scenario) -> ScenarioResult:
         etcs_inserted=scenario.etcs_inserted_at_start,
         relay_faults=[f for f in faults if isinstance(f, RelayFault)],
     )
-    vc = VitalControl(hardware, config=scenario.config)
-    responder = AtoObResponder(
-        hardware.request_link,
-        hardware.response_link,
-        sequence_modulo=scenario.config.sequence_modulo,
-        auto_confirm_rearm=scenario.auto_confirm_rearm,
-        actions=scenario.operator,
-        faults=[f for f in faults if isinstance(f, ResponderFault)],
-    )
-    surroundings = _Surroundings(scenario, hardware)
+
+
+def run_scenario(scenario: Scenario, *, replicas: int = 1, seed: int = 0) -> ScenarioResult:
+    """Run ``scenario`` in lockstep for its duration, on one VC or on two in 2-out-of-2
+    (``replicas=2``: each replica with its own link and ATO-OB answering it, the same
+    inputs, the vehicle's valves the pair's); measure and classify it. ``seed`` drives the
+    sensor-fusion speed's error (``fused_speed_supervision`` only)."""
+    if replicas not in (1, 2):
+        raise ScenarioError(f"one VC or a 2-out-of-2 pair, not {replicas}")
+    boards = [_hardware(scenario) for _ in range(replicas)]
+    vcs = [VitalControl(hardware, config=scenario.config) for hardware in boards]
     executive = Executive(SimClock())
+    pair: TwoOutOfTwo | None = None
+    if replicas == 2:
+        pair = TwoOutOfTwo(
+            (vcs[0], vcs[1]),
+            valves=EmergencyBrakeValves(
+                venting_s=scenario.full_eb_delay_s,
+                faults=[f for f in scenario.faults if isinstance(f, PipeFault)],
+            ),
+        )
+        pair.register(executive)
+    else:
+        vcs[0].register(executive)
+    surroundings = _Surroundings(
+        scenario, boards, pair.valves if pair else boards[0].valves, fusion_seed=seed
+    )
     executive.add_task(
         "surroundings", surroundings.step_ns, period_s=STEP_S, priority=SURROUNDINGS_PRIORITY
     )
-    vc.register(executive)
-    executive.add_task("ato_ob", responder.step_ns, period_s=STEP_S, priority=ATO_OB_PRIORITY)
+    for index, hardware in enumerate(boards):
+        responder = AtoObResponder(
+            hardware.request_link,
+            hardware.response_link,
+            sequence_modulo=scenario.config.sequence_modulo,
+            auto_confirm_rearm=scenario.auto_confirm_rearm,
+            actions=scenario.operator,
+            faults=[f for f in scenario.faults if isinstance(f, ResponderFault)],
+        )
+        executive.add_task(
+            f"ato_ob{index}", responder.step_ns, period_s=STEP_S, priority=ATO_OB_PRIORITY
+        )
     executive.run_until(round(scenario.duration_s * NS_PER_S))
-    return _result(scenario, vc, surroundings)
+    return _result(scenario, vcs[0], surroundings, pair=pair)
 
 
-def _result(scenario: Scenario, vc: VitalControl, surroundings: _Surroundings) -> ScenarioResult:
+def _result(
+    scenario: Scenario,
+    vc: VitalControl,
+    surroundings: _Surroundings,
+    *,
+    pair: TwoOutOfTwo | None = None,
+) -> ScenarioResult:
     events = vc.events
-    valves = vc.hardware.valves
+    valves = surroundings.valves
     eb_commands = [c for c in valves.commands if not c.energised]
     eb_moving = any(surroundings.speed_at(c.time_s) > MOVING_MPS for c in eb_commands)
     hazard_s = _hazard_s(scenario, vc, surroundings)
     after_s = hazard_s if hazard_s is not None else math.inf
+    if hazard_s is not None and scenario.hazard and scenario.hazard.kind is HazardKind.OVERSPEED:
+        # The fused speed's error may take it over the limit before the truth: an EB shortly
+        # before the true crossing counts, with a negative time.
+        after_s -= EARLY_OVERSPEED_S
     evidence = _first(events, {VcEventKind.EB_CONDITION, VcEventKind.SYSTEM_DECAY}, after_s)
     command = next((c for c in eb_commands if c.time_s >= after_s), None)
     decay = _first(events, {VcEventKind.SYSTEM_DECAY}, 0.0)
@@ -325,6 +419,7 @@ def _result(scenario: Scenario, vc: VitalControl, surroundings: _Surroundings) -
         decay_reasons=vc.outputs.decay_reasons,
         events=tuple(events),
         transitions=tuple(vc.transitions),
+        pair_events=tuple(pair.events) if pair is not None else (),
     )
 
 

@@ -87,6 +87,8 @@ class TaskB:
         Task A's copies of the requests it sent.
     tachometer_frames, balise_telegrams
         The odometry board's frames and the BTM's telegram headers, with their arrival.
+    fused_speeds
+        The sensor-fusion speed, read when ``config.fused_speed_supervision`` is set.
     read_eb_released, read_etcs_inserted
         The EB and ETCS digital inputs.
     actuation
@@ -103,6 +105,7 @@ class TaskB:
         requests_sent: MessageQueue[VcRequest],
         tachometer_frames: MessageQueue[Delivery[TachometerFrame]],
         balise_telegrams: MessageQueue[Delivery[TelegramHeader]],
+        fused_speeds: MessageQueue[Delivery[float]] | None = None,
         read_eb_released: Callable[[float], bool],
         read_etcs_inserted: Callable[[float], bool],
         actuation: Mailbox[ActuationStatus],
@@ -117,6 +120,8 @@ class TaskB:
         self._requests_sent = requests_sent
         self._tachometer_frames = tachometer_frames
         self._balise_telegrams = balise_telegrams
+        self._fused_speeds = fused_speeds
+        self._fused: Delivery[float] | None = None
         self._read_eb_released = read_eb_released
         self._read_etcs_inserted = read_etcs_inserted
         self._actuation = actuation
@@ -213,13 +218,29 @@ class TaskB:
         if self._isolated_since_s is None:
             self._isolated_since_s = now_s
         since_s = self._isolated_since_s
+        limit = self.config.speed_limit_etcs_isolated_mps
+        fused = self._fresh_fused_speed(now_s)
         if not odometry.efficient:
             evidence_s = max(since_s, odometry.not_efficient_since_s or since_s)
             self._found.setdefault(_C.ODOMETRY_NOT_EFFICIENT, evidence_s)
-        elif (odometry.speed_mps or 0.0) > self.config.speed_limit_etcs_isolated_mps:
+        elif (odometry.speed_mps or 0.0) > limit:
             evidence_s = max(since_s, odometry.speed_updated_s or since_s)
             self._found.setdefault(_C.OVERSPEED_ETCS_ISOLATED, evidence_s)
+        elif fused is not None and fused.message + self.config.fused_speed_margin_mps > limit:
+            self._found.setdefault(_C.OVERSPEED_ETCS_ISOLATED, max(since_s, fused.arrived_s))
         return True
+
+    def _fresh_fused_speed(self, now_s: float) -> Delivery[float] | None:
+        """The latest fused speed, if the option is on and it is recent enough."""
+        if self._fused_speeds is None or not self.config.fused_speed_supervision:
+            return None
+        arrived = self._fused_speeds.take_all()
+        if arrived:
+            self._fused = arrived[-1]
+        fused = self._fused
+        if fused is None or now_s - fused.arrived_s > self.config.fused_speed_timeout_s:
+            return None
+        return fused
 
     # -- the cycle -------------------------------------------------------------------------
 

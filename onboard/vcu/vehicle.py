@@ -10,6 +10,7 @@ issue), and the wheel speeds are the bogie's.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from onboard.plant.bogie import BogieModel
@@ -84,12 +85,27 @@ class BogieVehicle:
         *,
         gradient_permille: float = 0.0,
         curve_radius_m: float = math.inf,
+        emergency_brake: float = 0.0,
     ) -> None:
-        """Advance by ``dt_s`` [s]; curve resistance is not in the planar bogie model."""
+        """Advance by ``dt_s`` [s]; curve resistance is not in the planar bogie model.
+
+        ``emergency_brake`` (0 to 1, the EB's share as the brake pipe vents) acts below the
+        VCU, as the pipe acts on the brake cylinders: motors off, each pneumatic brake at least
+        that share of its maximum pressure.
+        """
         del curve_radius_m
         speed = self.speed_mps
         inputs = vcu_inputs(FORWARD, self._truth, speed, force_demand_n, self.powertrain)
         commands = self.vcu.step(dt_s, inputs)
+        if emergency_brake > 0.0:
+            pipe_pa = min(emergency_brake, 1.0) * self.parameters.brake_max_pressure_pa
+            commands = dataclasses.replace(
+                commands,
+                motor_torque_front_nm=0.0,
+                motor_torque_rear_nm=0.0,
+                brake_pressure_front_pa=max(commands.brake_pressure_front_pa, pipe_pa),
+                brake_pressure_rear_pa=max(commands.brake_pressure_rear_pa, pipe_pa),
+            )
         self.plant.step(dt_s, commands, gradient_permille=gradient_permille)
         self._truth = self.plant.truth()
         step_powertrain(self.powertrain, dt_s, self._truth, commands.range_extender_power_w)

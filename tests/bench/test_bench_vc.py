@@ -1,4 +1,5 @@
-"""``ato bench vc`` runs the VC in real time and prints its table (timings printed, not tested)."""
+"""``ato bench vc`` runs the VC in lockstep and in real time and prints its tables (timings
+printed, not tested)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,19 @@ import pytest
 from deploy.bench_vc import bench_vc
 
 
-def test_bench_vc_runs_a_second_in_real_time(capsys: pytest.CaptureFixture[str]) -> None:
-    timings = bench_vc(seconds=1.0)
-    assert timings["vc.B"].runs == timings["vc.C"].runs == 501
-    assert timings["vc.A"].runs == 26
-    assert all(sample > 0 for sample in timings["vc.B"].execution_ns)
+def test_bench_vc_times_lockstep_runs_and_both_real_time_waits(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    results = bench_vc(seconds=0.5, execution_runs=1000, spins_us=(0.0, 500.0))
+    assert set(results) == {"lockstep", "real time, spin 0 µs", "real time, spin 500 µs"}
+    lockstep = results["lockstep"]
+    assert lockstep["vc.B"].runs == lockstep["vc.C"].runs == 1001
+    assert lockstep["vc.A"].runs == 51
+    for timings in results.values():
+        assert all(sample > 0 for sample in timings["vc.B"].execution_ns)
+    real_time = results["real time, spin 500 µs"]
+    assert real_time["vc.B"].runs == 251 and real_time["vc.A"].runs == 13
     out = capsys.readouterr().out
-    assert "Vital Control in real time" in out
+    assert "execution time in lockstep" in out and "polling the last 500 µs" in out
     for column in ("exec median", "exec p99", "late p99", "misses"):
         assert column in out

@@ -9,20 +9,16 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-import uvicorn
 
-from deploy.ports import free_tcp_port
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import RealTimeClock
 from protocol import ZenohSettings, open_session, request
 from protocol import messages as m
 from protocol.registry import COMMAND
+from tests.browser.conftest import CHROMIUM, CHROMIUM_ARGS
 from tests.conftest import wait_for
 from trackdb import TrackMap, load_seed_line
-from trackside.config import Settings
-from trackside.main import create_app
 
-CHROMIUM = "/usr/bin/chromium"
 pytestmark = [
     pytest.mark.browser,
     pytest.mark.skipif(shutil.which(CHROMIUM) is None, reason="Debian's chromium is not installed"),
@@ -30,25 +26,15 @@ pytestmark = [
 
 
 @pytest.fixture
-def console_url(router_endpoint: str, tmp_path: Path) -> Iterator[str]:
-    port = free_tcp_port()
-    settings = Settings(
-        database_url=f"sqlite:///{tmp_path / 'ts.db'}", zenoh_connect=(router_endpoint,),
-        admin_user="operator", admin_password="console-pw",  # type: ignore[arg-type]
-    )  # fmt: skip
-    server = uvicorn.Server(
-        uvicorn.Config(create_app(settings), host="127.0.0.1", port=port, log_level="warning")
-    )
-    thread = threading.Thread(target=server.run, daemon=True)
-    thread.start()
-    assert wait_for(lambda: server.started, 10.0)
-    yield f"http://127.0.0.1:{port}/"
-    server.should_exit = True
-    thread.join(10.0)
+def simulated_operators() -> tuple[str, ...]:
+    """The trackside's simulated operator answers URV1's VC (it confirms the power-up EB rearm)."""
+    return ("URV1",)
 
 
 @pytest.fixture
-def moving_vehicle(router_endpoint: str) -> Iterator[None]:
+def moving_vehicle(router_endpoint: str, console_url: str) -> Iterator[None]:
+    """URV1 running; after ``console_url``, whose simulated operator rearms its EB."""
+    del console_url
     with open_session(ZenohSettings(connect=(router_endpoint,))) as session:
         node = OnboardNode(
             OnboardSettings(vehicle_id="URV1"), session=session, clock=RealTimeClock(5.0),
@@ -79,16 +65,7 @@ def test_fleet_page_lists_urv1_and_its_status_changes(console_url: str, tmp_path
     from playwright.sync_api import expect, sync_playwright
 
     with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(
-            executable_path=CHROMIUM,
-            args=[
-                "--no-sandbox",
-                "--disable-gpu",
-                "--disable-background-networking",
-                "--disable-component-update",
-                "--disable-sync",
-            ],
-        )
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         page = browser.new_page()
         page.goto(console_url)
         page.fill("input[name=username]", "operator")
@@ -102,6 +79,7 @@ def test_fleet_page_lists_urv1_and_its_status_changes(console_url: str, tmp_path
         expect(row).to_be_visible(timeout=5000)
         expect(page.locator("#connection")).to_have_text("live")
         expect(row.locator("td").nth(1)).to_have_text("yes")
+        expect(row.locator("td[data-field=operator]")).to_have_text("simulated")
         # ETCS: SR from the start, FS once the balise group at 150 m has given an MA.
         expect(row.locator("td").nth(6)).to_have_text(re.compile(r"^(SR|FS)$"))
         position = row.locator("td[data-field=position]")

@@ -58,7 +58,19 @@ def test_vehicle_appears_then_is_reported_gone(
             vehicle="URV1",
         )  # fmt: skip
         assert ack.accepted
-        assert wait_for(lambda: _speed(client, headers) > 0.1, 3.0)
+        # The Vital Control holds the EB from power-up until the operator confirms its rearm:
+        # the request reaches the trackside in the status, the confirmation goes back.
+        assert wait_for(lambda: _rearm_request(client, headers) is not None, 3.0)
+        confirm = m.OperatorConfirmCommand(
+            request=m.OperatorRequestKind.EB_REARM, number=_rearm_request(client, headers) or 0
+        )
+        ack = request(
+            session, COMMAND,
+            m.Command(vehicle_id="URV1", command_id=2, issued_by="e2e", body=confirm),
+            vehicle="URV1",
+        )  # fmt: skip
+        assert ack.accepted, ack.reason
+        assert wait_for(lambda: _speed(client, headers) > 0.1, 5.0)
 
         node.stop()
         runner.join(2.0)
@@ -67,6 +79,15 @@ def test_vehicle_appears_then_is_reported_gone(
     assert wait_for(lambda: (_vehicle(client, headers, "URV1") or {}).get("alive") is False, 2.0)
     gone_s = time.monotonic() - closed
     assert appeared_s < 2.0 and gone_s < 2.0
+
+
+def _rearm_request(client: TestClient, headers: dict[str, str]) -> int | None:
+    status = (_vehicle(client, headers, "URV1") or {}).get("status")
+    vital = status.get("vital_control") if isinstance(status, dict) else None
+    for pending in (vital or {}).get("operator_requests", []):
+        if pending["kind"] == "eb_rearm":
+            return int(pending["number"])
+    return None
 
 
 def _speed(client: TestClient, headers: dict[str, str]) -> float:

@@ -145,3 +145,43 @@ def test_a_journey_with_an_unreachable_schedule_is_refused(ring: TrackMap) -> No
     )  # fmt: skip
     with pytest.raises(InfeasibleLegError, match="field-test"):
         plan_journey(ring, URV_PARAMETERS, rushed, start_chainage_m=200.0)
+
+
+def test_a_skipped_stop_is_run_through_and_the_next_one_served(ring: TrackMap) -> None:
+    loop = Loop(ring, start_m=200.0)
+    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
+    loop.adf.start_journey(journey, 0.0, position_m=200.0)
+    loop.adf.engage(0.0)
+    loop.run(60.0)
+    loop.adf.skip_stop("east", loop.now, position_m=loop.plant.position_m,
+                       speed_mps=loop.plant.speed_mps)  # fmt: skip
+    assert loop.adf.next_stop(loop.plant.position_m).timing_point_id == "south"  # type: ignore[union-attr]
+    slowest_near_east = float("inf")
+    for _ in range(int(560 / 2.0)):
+        loop.run(2.0)
+        if abs(loop.plant.position_m - 1975.0) < 30.0:
+            slowest_near_east = min(slowest_near_east, loop.plant.speed_mps)
+        if loop.adf.stopped_at(loop.plant.position_m, loop.plant.speed_mps) is not None:
+            break
+    assert slowest_near_east > 3.0  # ran through east
+    stop = loop.adf.stopped_at(loop.plant.position_m, loop.plant.speed_mps)
+    assert stop is not None and stop.timing_point_id == "south"
+    assert abs(loop.plant.position_m - 3400.0) <= 0.5
+    assert [s.timing_point_id for s, _ in loop.adf.arrival_estimates(loop.now, 3400.0)] == ["north"]
+
+
+def test_train_hold_keeps_the_train_at_the_stop_until_released(ring: TrackMap) -> None:
+    loop = Loop(ring, start_m=200.0)
+    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
+    loop.adf.start_journey(journey, 0.0, position_m=200.0)
+    loop.adf.engage(0.0)
+    loop.run(100.0)
+    loop.adf.set_hold(True, loop.now, position_m=loop.plant.position_m,
+                      speed_mps=loop.plant.speed_mps)  # fmt: skip
+    loop.run(300.0)  # past east's departure at 320 s
+    assert loop.now > 390.0 and loop.plant.speed_mps == 0.0
+    assert abs(loop.plant.position_m - 1975.0) <= 0.5
+    loop.adf.set_hold(False, loop.now, position_m=loop.plant.position_m,
+                      speed_mps=loop.plant.speed_mps)  # fmt: skip
+    loop.run(30.0)
+    assert loop.plant.speed_mps > 3.0 and loop.plant.position_m > 2000.0

@@ -11,6 +11,7 @@ from protocol import LivelinessWatcher, TypedSubscriber, request
 from protocol import messages as m
 from protocol.registry import COMMAND, EVENT, STATUS
 from tests.conftest import wait_for
+from tests.operator import LockstepOperator
 from trackdb import TrackMap, load_seed_line
 
 
@@ -72,7 +73,7 @@ def test_remote_driving_command_moves_the_vehicle(
             vehicle="URV1",
         )
         assert ack.accepted and ack.command_id == 7
-        node.run(90.0)
+        LockstepOperator(trackside, node).run(90.0)  # confirms the power-up EB rearm
         assert wait_for(lambda: any(e.code == "rd.target_speed" for e in events))
     report = node.status(node.clock.now_ns)
     assert report.sc_state is m.ScState.RD
@@ -140,7 +141,7 @@ def test_bogie_fidelity_drives_through_the_vcu(
             vehicle="URV1",
         )  # fmt: skip
         assert ack.accepted
-        node.run(60.0)
+        LockstepOperator(trackside, node).run(60.0)
         assert node.plant.speed_mps == pytest.approx(target, abs=0.5)
         truth = node.plant.truth
         wheel_speed = truth.wheel_speed_rear_radps * truth.wheel_radius_m

@@ -79,3 +79,19 @@ def test_an_rbc_movement_authority_reaches_etcs() -> None:
     revoked = message.model_copy(update={"ma_id": 2, "authority": None,
                                           "change": m.MovementAuthorityChange.REVOKED})  # fmt: skip
     assert onboard.receive_movement_authority(revoked, 0.3) == "revoked: emergency stop"
+
+
+def test_skip_stop_and_train_hold_are_checked_against_the_journey() -> None:
+    onboard = stack()
+    assert onboard.refusal(m.TrainHoldCommand(hold=True)) == "no journey profile accepted"
+    assert onboard.refusal(m.SkipStopCommand(timing_point_id="east")) == (
+        "no journey profile accepted"
+    )
+    onboard.review_journey(profile(300.0))
+    last = onboard.refusal(m.SkipStopCommand(timing_point_id="east"))
+    assert last == "east ends the journey: it cannot be skipped"
+    unknown = onboard.refusal(m.SkipStopCommand(timing_point_id="nowhere"))
+    assert unknown == "nowhere is not a stopping point ahead on the journey"
+    assert onboard.refusal(m.TrainHoldCommand(hold=True)) is None
+    onboard.train_hold(True, 0.0)
+    assert onboard.driving.hold

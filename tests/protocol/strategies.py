@@ -19,6 +19,23 @@ def _enum(enum: Any) -> st.SearchStrategy[Any]:
     return st.sampled_from(list(enum))
 
 
+state_names = st.from_regex(r"^[a-z0-9_]{1,40}$", fullmatch=True)
+operator_requests = st.builds(
+    m.OperatorRequest,
+    kind=_enum(m.OperatorRequestKind), number=st.integers(0, 255), raised_s=non_negative,
+    deadline_s=st.none() | non_negative, confirmed=st.booleans(),
+)  # fmt: skip
+vital_control_statuses = st.builds(
+    m.VitalControlStatus,
+    eb_commanded=st.booleans(), system_decay=st.booleans(),
+    decay_reasons=st.lists(state_names, max_size=3).map(tuple),
+    eb_conditions=st.lists(st.integers(1, 6), max_size=6, unique=True).map(tuple),
+    etcs_isolated=st.booleans(), supervision_state=state_names, brake_state=state_names,
+    etcs_state=state_names, standstill=st.booleans(), odometry_efficient=st.booleans(),
+    speed_mps=st.none() | non_negative, replicas=st.integers(1, 2), pair_tripped=st.booleans(),
+    operator_requests=st.lists(operator_requests, max_size=4).map(tuple),
+)  # fmt: skip
+
 status_reports = st.builds(
     m.StatusReport,
     vehicle_id=vehicle_ids, seq=counters, sim_time_s=non_negative, line_id=names,
@@ -34,6 +51,7 @@ status_reports = st.builds(
                   estimated_s=non_negative),
         max_size=3,
     ).map(tuple),
+    vital_control=st.none() | vital_control_statuses,
 )  # fmt: skip
 
 events = st.builds(
@@ -51,6 +69,14 @@ command_bodies = st.one_of(
     ),
     st.just(m.EngageCommand()),
     st.just(m.DisengageCommand()),
+    st.just(m.EmergencyBrakeCommand()),
+    st.builds(
+        m.OperatorConfirmCommand,
+        request=_enum(m.OperatorRequestKind),
+        number=st.integers(0, 255),
+    ),  # fmt: skip
+    st.builds(m.SkipStopCommand, timing_point_id=names),
+    st.builds(m.TrainHoldCommand, hold=st.booleans()),
 )
 
 commands = st.builds(

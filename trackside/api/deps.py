@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
-from typing import Annotated
+from collections.abc import Callable, Coroutine, Iterator
+from typing import Annotated, Any
 
 from fastapi import Depends, HTTPException, Request, status
 from fastapi.security import OAuth2PasswordBearer
@@ -14,10 +14,15 @@ from trackside.config import Settings
 from trackside.errors import AuthenticationError, PermissionDeniedError
 from trackside.models import Role, User
 from trackside.services import users
+from trackside.services.commands import CommandService
+from trackside.simulated_operator import SimulatedOperatorThread
 
 __all__ = [
     "AdminUser",
     "BridgeDep",
+    "CommandsDep",
+    "SimulatedDep",
+    "TokenDep",
     "DriverUser",
     "CurrentUser",
     "SessionDep",
@@ -35,17 +40,30 @@ def get_db(request: Request) -> Iterator[Session]:
         yield db
 
 
-def get_settings(request: Request) -> Settings:
+async def get_settings(request: Request) -> Settings:
     settings: Settings = request.app.state.settings
     return settings
 
 
-def get_bridge(request: Request) -> ZenohBridge:
+async def get_bridge(request: Request) -> ZenohBridge:
     bridge: ZenohBridge = request.app.state.bridge
     return bridge
 
 
+async def get_commands(request: Request) -> CommandService:
+    commands: CommandService = request.app.state.commands
+    return commands
+
+
+async def simulated_vehicles(request: Request) -> frozenset[str]:
+    """The vehicles the simulated operator answers."""
+    operator: SimulatedOperatorThread | None = request.app.state.simulated_operator
+    return frozenset() if operator is None else operator.operator.vehicles
+
+
 SessionDep = Annotated[Session, Depends(get_db)]
+CommandsDep = Annotated[CommandService, Depends(get_commands)]
+SimulatedDep = Annotated[frozenset[str], Depends(simulated_vehicles)]
 SettingsDep = Annotated[Settings, Depends(get_settings)]
 BridgeDep = Annotated[ZenohBridge, Depends(get_bridge)]
 TokenDep = Annotated[str, Depends(oauth2_scheme)]
@@ -67,10 +85,11 @@ def get_current_user(db: SessionDep, token: TokenDep) -> User:
 CurrentUser = Annotated[User, Depends(get_current_user)]
 
 
-def require(role: Role) -> Callable[[User], User]:
-    """A dependency that lets through users with at least ``role``; others get 403."""
+def require(role: Role) -> Callable[[User], Coroutine[Any, Any, User]]:
+    """A dependency that lets through users with at least ``role``; others get 403. Pure
+    dependencies are ``async`` so that they run on the event loop, not in a worker thread."""
 
-    def check(user: CurrentUser) -> User:
+    async def check(user: CurrentUser) -> User:
         try:
             users.require_role(user, role)
         except PermissionDeniedError as exc:

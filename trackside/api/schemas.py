@@ -49,6 +49,11 @@ class VehicleStatusPublic(BaseModel):
     position_confidence_m: float | None
     next_timing_point_id: str | None
     arrivals: list[m.ArrivalEstimate]
+    vital_control: m.VitalControlStatus | None = None
+    permitted_speed_mps: float | None = None
+    intervention_speed_mps: float | None = None
+    reference_speed_mps: float | None = None
+    train_hold: bool = False
     age_s: float | None
     rate_ok: bool
 
@@ -57,9 +62,16 @@ class VehiclePublic(BaseModel):
     id: str
     alive: bool
     status: VehicleStatusPublic | None
+    holder: str | None = Field(default=None, description="The user holding the vehicle")
+    simulated_operator: bool = Field(
+        default=False, description="The trackside's simulated operator answers its VC requests"
+    )
 
     @classmethod
-    def from_snapshot(cls, snapshot: VehicleSnapshot) -> VehiclePublic:
+    def from_snapshot(
+        cls, snapshot: VehicleSnapshot, *, holder: str | None = None,
+        simulated_operator: bool = False,
+    ) -> VehiclePublic:  # fmt: skip
         report = snapshot.status
         status = None
         if report is not None:
@@ -69,7 +81,10 @@ class VehiclePublic(BaseModel):
             status = VehicleStatusPublic(
                 **fields, age_s=snapshot.status_age_s, rate_ok=snapshot.status_rate_ok
             )
-        return cls(id=snapshot.id, alive=snapshot.alive, status=status)
+        return cls(
+            id=snapshot.id, alive=snapshot.alive, status=status, holder=holder,
+            simulated_operator=simulated_operator,
+        )  # fmt: skip
 
 
 class LinePublic(BaseModel):

@@ -219,11 +219,13 @@ def test_a_lost_session_stops_the_train_at_the_next_stopping_point() -> None:
     assert (lost.stop_at_next_stopping_point, lost.traction_allowed) == (True, True)
     assert lost.mode_request is ModeRequest.AUTONOMOUS
     assert lost.not_ready_reasons == (Condition.TRACKSIDE_SESSION,)
-    # Once begun, the fallback runs to its stop even if the session comes back.
-    assert drive.next(**MOVING).stop_at_next_stopping_point
+    # Standing (at a signal, say) when the session comes back: the fallback holds.
     at_signal = drive.next(mode=EtcsMode.AD, at_stopping_point=False)
     assert (at_signal.state, at_signal.stop_at_next_stopping_point) == (S.ENGAGED, True)
-    drive.next(**MOVING)
+    # Back while running (a trackside restart): the fallback is cancelled, the journey goes on.
+    back = drive.next(**MOVING)
+    assert (back.state, back.stop_at_next_stopping_point) == (S.ENGAGED, False)
+    assert drive.next(trackside_session_alive=False, **MOVING).stop_at_next_stopping_point
     stopped = drive.next(mode=EtcsMode.AD, trackside_session_alive=False)
     assert stopped.state is S.AVAILABLE
     assert not (stopped.stop_at_next_stopping_point or stopped.continue_after_dwell)

@@ -11,7 +11,9 @@ from onboard.vc import (
     SEED_HAZARDOUS_COUNTS,
     SEED_SCENARIO_COUNT,
     Fsm,
+    FusedComparison,
     OutcomeClass,
+    PairEventKind,
     ScenarioResult,
     count_by_class,
     format_report,
@@ -99,3 +101,41 @@ def test_the_report_compares_with_the_seeds(catalogue_results: dict[str, Scenari
     assert "36 scenarios (seeds: 36), 23 hazardous (seeds: 23)" in report
     assert "eb_then_decay           10   seeds  10" in report
     assert "rows 100% of 6, (row, source) pairs 100% of 10" in report
+
+
+def test_a_2oo2_pair_ends_every_scenario_like_one_vc(
+    catalogue_results: dict[str, ScenarioResult], pair_results: dict[str, ScenarioResult]
+) -> None:
+    """Both replicas see the same inputs: the pair brakes when they brake, at the same tick,
+    and never trips on a disagreement or a watchdog."""
+    for key, single in catalogue_results.items():
+        paired = pair_results[key]
+        assert paired.outcome is single.outcome, key
+        assert paired.eb_command_s == single.eb_command_s, key
+        assert paired.decay_s == single.decay_s, key
+        assert all(e.kind is PairEventKind.REPLICA_EB for e in paired.pair_events), key
+
+
+def test_the_fused_speed_brings_overspeed_under_500_ms_and_never_later(
+    fused_comparison: dict[str, FusedComparison],
+) -> None:
+    overspeed = fused_comparison["L"]
+    assert overspeed.tachometer.hazard_to_full_eb_s is not None
+    assert overspeed.tachometer.hazard_to_full_eb_s > 0.5
+    totals = overspeed.fused_values("hazard_to_full_eb_s")
+    assert len(totals) == len(overspeed.fused)
+    assert max(totals) <= 0.5
+    assert max(totals) <= overspeed.tachometer.hazard_to_full_eb_s
+    assert all(r.outcome is OutcomeClass.EB_SAFE_RECOVERY for r in overspeed.fused)
+
+
+def test_the_fused_speed_changes_nothing_below_the_limit_or_for_board_faults(
+    fused_comparison: dict[str, FusedComparison],
+) -> None:
+    below = fused_comparison["isolated-28kmh"]
+    assert all(r.outcome is OutcomeClass.NONE for r in below.fused)
+    for key in ("M", "M-silent", "M-noisy"):
+        item = fused_comparison[key]
+        assert {r.hazard_to_full_eb_s for r in item.fused} == {
+            item.tachometer.hazard_to_full_eb_s
+        }, key

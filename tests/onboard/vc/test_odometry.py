@@ -62,8 +62,8 @@ def test_efficient_and_standstill_after_three_frames_from_power_up() -> None:
         (TachometerFaultMode.FROZEN, 1.04, 1.60),
         # The first noisy frame; the frames from 1.36 s on are good.
         (TachometerFaultMode.NOISY, 1.04, 1.52),
-        # The last frame (0.96 s) + 100 ms; then as FROZEN.
-        (TachometerFaultMode.SILENT, 1.06, 1.60),
+        # The last frame (0.96 s) + 96 ms; then as FROZEN.
+        (TachometerFaultMode.SILENT, 1.056, 1.60),
     ],
 )
 def test_each_board_fault_makes_the_odometry_not_efficient(

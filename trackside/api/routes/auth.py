@@ -1,33 +1,60 @@
-"""Bearer tokens."""
+"""Bearer tokens: login (rate-limited) and logout (revocation)."""
 
 from __future__ import annotations
 
+import math
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, HTTPException, status
+from fastapi import APIRouter, Depends, HTTPException, Request, Response, status
 from fastapi.security import OAuth2PasswordRequestForm
 
-from trackside.api.deps import SessionDep, SettingsDep
+from trackside.api.deps import CurrentUser, SessionDep, SettingsDep, TokenDep
 from trackside.api.schemas import TokenPublic
 from trackside.errors import AuthenticationError
+from trackside.ratelimit import LoginLimiter
 from trackside.services import users
 
 router = APIRouter(prefix="/auth", tags=["auth"])
 
 
-@router.post("/token")
+@router.post(
+    "/token",
+    responses={
+        401: {"description": "Wrong credentials"},
+        429: {"description": "Too many failed logins"},
+    },
+)
 def login(
+    request: Request,
     db: SessionDep,
     settings: SettingsDep,
     form: Annotated[OAuth2PasswordRequestForm, Depends()],
 ) -> TokenPublic:
-    """Exchange a username and password for a bearer token."""
+    """Exchange a username and password for a bearer token; 429 after too many failures."""
+    limiter: LoginLimiter = request.app.state.login_limiter
+    address = request.client.host if request.client is not None else "unknown"
+    wait_s = limiter.retry_after_s(form.username, address)
+    if wait_s is not None:
+        raise HTTPException(
+            status_code=status.HTTP_429_TOO_MANY_REQUESTS,
+            detail="too many failed logins; try again later",
+            headers={"Retry-After": str(max(1, math.ceil(wait_s)))},
+        )
     try:
         user = users.authenticate(db, form.username, form.password)
     except AuthenticationError as exc:
+        limiter.failed(form.username, address)
         raise HTTPException(
             status_code=status.HTTP_401_UNAUTHORIZED,
             detail="wrong username or password",
             headers={"WWW-Authenticate": "Bearer"},
         ) from exc
+    limiter.succeeded(form.username)
     return TokenPublic(access_token=users.issue_token(db, user, settings.token_ttl_s))
+
+
+@router.post("/logout", status_code=status.HTTP_204_NO_CONTENT)
+def logout(db: SessionDep, token: TokenDep, _user: CurrentUser) -> Response:
+    """Revoke the bearer token used for this request."""
+    users.revoke_token(db, token)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

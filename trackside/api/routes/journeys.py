@@ -100,7 +100,7 @@ def read_journey(
     journey_id: str,
     db: SessionDep,
     _user: ObserverUser,
-    version: Annotated[int | None, Query(ge=1)] = None,
+    version: Annotated[int | None, Query(ge=1, le=2**31 - 1)] = None,
 ) -> JourneyPublic:
     """One journey, its latest version unless a version is asked for."""
     try:

@@ -1,0 +1,273 @@
+"""``ato bench trackside``: the service under a simulated fleet and REST load, on loopback.
+
+Three processes: this one runs the Zenoh router and ATO-TS (uvicorn, SQLite in a temporary
+directory); a fleet process publishes the status of ``vehicles`` simulated vehicles at 5 Hz and
+answers their commands; a load process runs paced REST requests (reads, history, commands of a
+driver holding every vehicle) and per-vehicle WebSocket clients. Each status carries its wall
+send time in ``sim_time_s``, so the WebSocket clients measure status-to-browser latency across
+processes on one clock. Prints REST p50/p99 and status-to-browser p50/p99 beside the targets.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import statistics
+import tempfile
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.table import Table
+
+from deploy.ports import free_tcp_port, loopback_endpoint
+from protocol import (
+    TypedPublisher,
+    TypedQueryable,
+    ZenohSettings,
+    declare_liveliness,
+    open_session,
+)
+from protocol import messages as m
+from protocol.registry import ALIVE_ONBOARD, COMMAND, STATUS
+from protocol.router import run_router
+
+__all__ = ["BenchFigures", "bench_trackside", "fleet_process", "load_process"]
+
+REST_P99_TARGET_MS = 50.0
+LIVE_P99_TARGET_MS = 100.0
+STATUS_PERIOD_S = 0.2
+ADMIN = ("bench-admin", "bench-password")
+KINDS = ("GET /vehicles", "GET /vehicles/{id}", "GET …/telemetry", "GET …/events",
+         "POST …/rd-target-speed")  # fmt: skip
+
+
+@dataclass(frozen=True)
+class BenchFigures:
+    rest_ms: dict[str, float]
+    live_ms: dict[str, float]
+    requests: int
+    frames: int
+    rest_errors: int
+    rest_by_kind_ms: dict[str, dict[str, float]]
+
+
+def _vehicle_id(index: int) -> str:
+    return f"SIM{index:03d}"
+
+
+def _report(vehicle: str, seq: int) -> m.StatusReport:
+    return m.StatusReport(
+        vehicle_id=vehicle, seq=seq, sim_time_s=time.time(), line_id="bologna-ring",
+        position_m=float(seq), speed_mps=10.0, acceleration_mps2=0.0, traction_force_n=1000.0,
+        ato_state=m.AtoState.ENGAGED, etcs_mode=m.EtcsMode.FS, sc_state=m.ScState.AD,
+    )  # fmt: skip
+
+
+def fleet_process(endpoint: str, vehicles: int, seconds: float, ready: Any) -> None:
+    """Publish every vehicle's status at 5 Hz, spread over the period; answer commands."""
+    with open_session(ZenohSettings(connect=(endpoint,))) as session:
+        ids = [_vehicle_id(index) for index in range(vehicles)]
+        tokens = [declare_liveliness(session, ALIVE_ONBOARD.format(vehicle=v)) for v in ids]
+        publishers = [TypedPublisher(session, STATUS, vehicle=v) for v in ids]
+
+        def answer(_chunks: dict[str, str], command: m.Command) -> m.CommandAck:
+            return m.CommandAck(vehicle_id=command.vehicle_id, command_id=command.command_id,
+                                accepted=True, sim_time_s=time.time())  # fmt: skip
+
+        commands = TypedQueryable(session, COMMAND, answer)
+        ready.set()
+        started = time.monotonic()
+        seq = 0
+        idle = threading.Event()
+        while time.monotonic() - started < seconds:
+            round_start = started + seq * STATUS_PERIOD_S
+            for index, publisher in enumerate(publishers):
+                due = round_start + index * STATUS_PERIOD_S / vehicles
+                idle.wait(max(0.0, due - time.monotonic()))
+                publisher.put(_report(ids[index], seq))
+            seq += 1
+        commands.close()
+        for publisher in publishers:
+            publisher.close()
+        for token in tokens:
+            token.undeclare()
+
+
+def _percentiles(samples: list[float]) -> dict[str, float]:
+    if not samples:
+        return {"p50": float("nan"), "p99": float("nan"), "max": float("nan"), "n": 0.0}
+    ordered = sorted(samples)
+    p99 = ordered[min(len(ordered) - 1, round(0.99 * (len(ordered) - 1)))]
+    return {"p50": statistics.median(ordered), "p99": p99, "max": ordered[-1],
+            "n": float(len(ordered))}  # fmt: skip
+
+
+def _rest_worker(
+    base_url: str, headers: dict[str, str], vehicles: int, rate_hz: float, seconds: float,
+    worker: int, out: list[tuple[float, int, str]],
+) -> None:  # fmt: skip
+    import httpx
+
+    with httpx.Client(base_url=base_url, headers=headers, timeout=10.0) as client:
+        started = time.monotonic()
+        count = 0
+        idle = threading.Event()
+        while (now := time.monotonic()) - started < seconds:
+            idle.wait(max(0.0, started + count / rate_hz - now))
+            vehicle = _vehicle_id((worker * 7 + count) % vehicles)
+            kind = count % 5
+            sent = time.perf_counter()
+            if kind == 0:
+                response = client.get("/api/v1/vehicles")
+            elif kind == 1:
+                response = client.get(f"/api/v1/vehicles/{vehicle}")
+            elif kind == 2:
+                response = client.get(f"/api/v1/vehicles/{vehicle}/telemetry?limit=60")
+            elif kind == 3:
+                response = client.get(f"/api/v1/vehicles/{vehicle}/events?limit=50")
+            else:
+                response = client.post(f"/api/v1/vehicles/{vehicle}/rd-target-speed",
+                                       json={"target_speed_kmh": 30.0})  # fmt: skip
+            out.append((time.perf_counter() - sent, response.status_code, KINDS[kind]))
+            count += 1
+
+
+def _live_client(url: str, seconds: float, out: list[float]) -> None:
+    from websockets.sync.client import connect
+
+    deadline = time.monotonic() + seconds
+    with connect(url) as socket:
+        while time.monotonic() < deadline:
+            try:
+                frame = json.loads(socket.recv(timeout=1.0))
+            except TimeoutError:
+                continue
+            if frame["type"] == "status":
+                out.append(time.time() - frame["status"]["sim_time_s"])
+
+
+def load_process(
+    base_url: str, vehicles: int, rate_hz: float, seconds: float, sockets: int, results: Any
+) -> None:
+    """Select every vehicle, then run the REST workers and WebSocket clients; put the
+    figures on ``results``."""
+    import httpx
+
+    with httpx.Client(base_url=base_url, timeout=30.0) as client:
+        form = {"username": ADMIN[0], "password": ADMIN[1]}
+        token = client.post("/api/v1/auth/token", data=form).json()["access_token"]
+        headers = {"Authorization": f"Bearer {token}"}
+        for index in range(vehicles):
+            client.post(f"/api/v1/vehicles/{_vehicle_id(index)}/select", headers=headers)
+    workers = 4
+    rest: list[list[tuple[float, int, str]]] = [[] for _ in range(workers)]
+    live: list[list[float]] = [[] for _ in range(sockets)]
+    ws_base = base_url.replace("http://", "ws://")
+    threads = [
+        threading.Thread(target=_rest_worker, args=(
+            base_url, headers, vehicles, rate_hz / workers, seconds, worker, rest[worker]))
+        for worker in range(workers)
+    ] + [
+        threading.Thread(target=_live_client, args=(
+            f"{ws_base}/api/v1/ws/vehicles/{_vehicle_id(index * vehicles // max(1, sockets))}"
+            f"?token={token}", seconds, live[index]))
+        for index in range(sockets)
+    ]  # fmt: skip
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    samples = [sample for part in rest for sample in part]
+    results.put({
+        "rest": [duration for duration, _, _ in samples],
+        "by_kind": {kind: [d for d, _, k in samples if k == kind] for kind in KINDS},
+        "errors": sum(1 for _, code, _ in samples if code >= 400),
+        "live": [latency for part in live for latency in part],
+    })  # fmt: skip
+
+
+def run_bench(
+    *, vehicles: int = 100, seconds: float = 20.0, rate_hz: float = 100.0, sockets: int = 10,
+    warmup_s: float = 3.0,
+) -> BenchFigures:  # fmt: skip
+    """Run the three processes and return the figures [ms]."""
+    import uvicorn
+
+    from trackside.config import Settings
+    from trackside.main import create_app
+
+    endpoint = loopback_endpoint()
+    stop, router_ready = threading.Event(), threading.Event()
+    router = threading.Thread(target=run_router, args=(stop,), daemon=True,
+                              kwargs={"listen": [endpoint], "ready": router_ready})  # fmt: skip
+    router.start()
+    if not router_ready.wait(10.0):
+        raise RuntimeError("the Zenoh router did not start")
+    spawn = multiprocessing.get_context("spawn")
+    with tempfile.TemporaryDirectory() as scratch:
+        port = free_tcp_port()
+        settings = Settings(
+            database_url=f"sqlite:///{Path(scratch) / 'bench.db'}", zenoh_connect=(endpoint,),
+            admin_user=ADMIN[0], admin_password=ADMIN[1], seed_lines=False,
+        )  # fmt: skip
+        server = uvicorn.Server(uvicorn.Config(create_app(settings), host="127.0.0.1",
+                                               port=port, log_level="warning"))  # fmt: skip
+        serving = threading.Thread(target=server.run, daemon=True)
+        serving.start()
+        while not server.started:
+            stop.wait(0.05)
+        fleet_ready = spawn.Event()
+        fleet_s = seconds + warmup_s + 5.0
+        fleet = spawn.Process(target=fleet_process,
+                              args=(endpoint, vehicles, fleet_s, fleet_ready))  # fmt: skip
+        fleet.start()
+        fleet_ready.wait(30.0)
+        stop.wait(warmup_s)  # every vehicle seen alive and reporting
+        results = spawn.Queue()
+        load = spawn.Process(target=load_process, args=(
+            f"http://127.0.0.1:{port}", vehicles, rate_hz, seconds, sockets, results))  # fmt: skip
+        load.start()
+        figures = results.get(timeout=seconds + 120.0)
+        load.join(10.0)
+        fleet.terminate()
+        fleet.join(10.0)
+        server.should_exit = True
+        serving.join(10.0)
+    stop.set()
+    router.join(10.0)
+    rest = _percentiles([value * 1e3 for value in figures["rest"]])
+    live = _percentiles([value * 1e3 for value in figures["live"]])
+    by_kind = {
+        kind: _percentiles([value * 1e3 for value in values])
+        for kind, values in figures["by_kind"].items()
+    }
+    return BenchFigures(rest_ms=rest, live_ms=live, requests=len(figures["rest"]),
+                        frames=len(figures["live"]), rest_errors=figures["errors"],
+                        rest_by_kind_ms=by_kind)  # fmt: skip
+
+
+def bench_trackside(*, vehicles: int, seconds: float, rate_hz: float, sockets: int) -> BenchFigures:
+    """Run the bench and print the figures beside the targets."""
+    console = Console(width=100)
+    console.print(
+        f"{vehicles} vehicles at {1 / STATUS_PERIOD_S:.0f} Hz, REST at {rate_hz:.0f} req/s and "
+        f"{sockets} WebSocket clients for {seconds:.0f} s…"
+    )
+    figures = run_bench(vehicles=vehicles, seconds=seconds, rate_hz=rate_hz, sockets=sockets)
+    table = Table(title="ATO-TS under load (loopback)")
+    for column in ("measure", "n", "p50 [ms]", "p99 [ms]", "max [ms]", "target p99 [ms]"):
+        table.add_column(column, justify="left" if column == "measure" else "right")
+    rows = [("REST request → response", figures.rest_ms, REST_P99_TARGET_MS)]
+    rows += [(f"  {kind}", values, REST_P99_TARGET_MS)
+             for kind, values in figures.rest_by_kind_ms.items()]  # fmt: skip
+    rows.append(("status → browser (WebSocket)", figures.live_ms, LIVE_P99_TARGET_MS))
+    for name, values, target in rows:
+        table.add_row(name, f"{values['n']:.0f}", f"{values['p50']:.1f}", f"{values['p99']:.1f}",
+                      f"{values['max']:.1f}", f"≤ {target:.0f}")  # fmt: skip
+    console.print(table)
+    console.print(f"REST answers ≥ 400: {figures.rest_errors}")
+    return figures

@@ -1,0 +1,187 @@
+"""``ato sfa ...``: the sensor-fusion listener alone, the emulator, and the offline mode.
+
+- ``ato sfa listen --input HOST:PORT --obcu HOST:PORT [--line LINE]`` (CONTRACT.md §1): the
+  listener on real sockets until a STOP packet (exit 0) or Ctrl-C.
+- ``ato sfa emulate --to HOST:PORT``: the interface-modules emulator sending an emulated drive.
+- ``ato sfa record --out FILE``: an emulated drive in lockstep, its received datagrams with
+  arrival times and the truth written to a recording (seed 002 §4.1.2).
+- ``ato sfa replay FILE``: a recording through the filter with the sensors and noise chosen;
+  error statistics against the recorded truth.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated
+
+import typer
+
+if TYPE_CHECKING:
+    from onboard.sfa import DriveSettings
+    from trackdb import TrackMap
+
+__all__ = ["sfa_app"]
+
+sfa_app = typer.Typer(help="Sensor-fusion positioning (seed 002).", no_args_is_help=True)
+
+LineOption = Annotated[str, typer.Option("--line", help="Line id.")]
+SeedOption = Annotated[int, typer.Option("--seed", help="Seed of the emulator's randomness.")]
+
+
+def _address(text: str) -> tuple[str, int]:
+    from onboard.sfa import AddressError
+    from onboard.sfa.runner import parse_address
+
+    try:
+        return parse_address(text)
+    except AddressError as exc:
+        raise typer.BadParameter(str(exc)) from exc
+
+
+def _track_map(line: str) -> TrackMap:
+    from trackdb import TrackMap, load_seed_line
+
+    try:
+        return TrackMap(load_seed_line(line))
+    except KeyError as exc:
+        raise typer.BadParameter(str(exc)) from exc
+
+
+@sfa_app.command()
+def listen(
+    input_address: Annotated[str, typer.Option("--input", help="HOST:PORT to receive INPUT on.")],
+    obcu: Annotated[str, typer.Option("--obcu", help="HOST:PORT of the OBCU.")],
+    line: LineOption = "bologna-ring",
+) -> None:
+    """Run the sensor-fusion listener until STOP (exit 0)."""
+    from deploy.processes import stop_on_signals
+    from onboard.sfa import ListenerCore
+    from onboard.sfa.runner import ListenerRunner
+
+    core = ListenerCore(_track_map(line))
+    stop = threading.Event()
+    with (
+        stop_on_signals(stop),
+        ListenerRunner(
+            core, input_address=_address(input_address), obcu_address=_address(obcu)
+        ) as runner,
+    ):
+        host, port = runner.input_address
+        typer.echo(f"listening on {host}:{port}, OBCU at {obcu}", err=True)
+        status = runner.run(stop)
+    counters = core.counters
+    typer.echo(
+        f"received {counters.received}, processed {dict(counters.processed)}, "
+        f"dropped {dict(counters.dropped)}, outputs {counters.outputs_sent}, "
+        f"acks {counters.acks_received}",
+        err=True,
+    )
+    raise typer.Exit(code=status)
+
+
+def _settings(
+    line: str,
+    duration: float,
+    cruise_kmh: float,
+    loss: float,
+    reorder: float,
+    seed: int,
+    *,
+    record: bool = False,
+) -> DriveSettings:
+    """The drive the options describe; bad options become ``typer.BadParameter``."""
+    from onboard.sfa import DriveSettings, LinkFaults
+
+    _track_map(line)
+    if duration <= 0 or cruise_kmh <= 0:
+        raise typer.BadParameter("--duration and --cruise-kmh must be positive")
+    try:
+        link_faults = LinkFaults(loss_rate=loss, reorder_rate=reorder)
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc)) from exc
+    return DriveSettings(
+        line_id=line, duration_s=duration, cruise_kmh=cruise_kmh, seed=seed,
+        link_faults=link_faults, record=record,
+    )  # fmt: skip
+
+
+@sfa_app.command()
+def emulate(
+    to: Annotated[str, typer.Option("--to", help="HOST:PORT of the listener.")],
+    line: LineOption = "bologna-ring",
+    duration: Annotated[float, typer.Option(help="Simulated drive [s].")] = 120.0,
+    speed: Annotated[float, typer.Option(help="Simulated s per wall s (0: flat out).")] = 1.0,
+    cruise_kmh: Annotated[float, typer.Option(help="Cruise speed [km/h].")] = 80.0,
+    loss: Annotated[float, typer.Option(help="Datagram loss rate.")] = 0.0,
+    reorder: Annotated[float, typer.Option(help="Datagram reorder rate.")] = 0.0,
+    seed: SeedOption = 0,
+) -> None:
+    """Send an emulated drive's INPUT datagrams (GROUND_TRUTH … STOP) over UDP."""
+    from onboard.sfa.runner import send_drive
+
+    if speed < 0:
+        raise typer.BadParameter("--speed must not be negative")
+    settings = _settings(line, duration, cruise_kmh, loss, reorder, seed)
+    sent = send_drive(settings, _track_map(line), _address(to), speed_factor=speed or float("inf"))
+    typer.echo(f"sent {sent} datagrams")
+
+
+@sfa_app.command()
+def record(
+    out: Annotated[Path, typer.Option("--out", help="Recording file (.npz).")],
+    line: LineOption = "bologna-ring",
+    duration: Annotated[float, typer.Option(help="Simulated drive [s].")] = 300.0,
+    cruise_kmh: Annotated[float, typer.Option(help="Cruise speed [km/h].")] = 80.0,
+    loss: Annotated[float, typer.Option(help="Datagram loss rate.")] = 0.0,
+    reorder: Annotated[float, typer.Option(help="Datagram reorder rate.")] = 0.0,
+    seed: SeedOption = 0,
+) -> None:
+    """Record an emulated drive's datagrams, arrival times and truth (lockstep)."""
+    from onboard.sfa import RecordingError, run_lockstep
+
+    result = run_lockstep(_settings(line, duration, cruise_kmh, loss, reorder, seed, record=True))
+    if result.recording is None:
+        raise typer.Exit(code=1)
+    try:
+        result.recording.save(out)
+    except RecordingError as exc:
+        typer.echo(str(exc), err=True)
+        raise typer.Exit(code=1) from exc
+    typer.echo(f"recorded {len(result.recording.datagrams)} datagrams to {out}")
+
+
+@sfa_app.command()
+def replay(
+    file: Annotated[Path, typer.Argument(help="A recording made by `ato sfa record`.")],
+    sensors: Annotated[
+        str, typer.Option(help="Sensors enabled, comma-separated: imu,odometer,gps.")
+    ] = "imu,odometer,gps",
+    gps_sigma_m: Annotated[float, typer.Option(help="GPS σ along the track [m].")] = 3.0,
+    acceleration_sigma: Annotated[
+        float, typer.Option(help="IMU acceleration input σ [m/s²].")
+    ] = 0.05,
+) -> None:
+    """Replay a recording faster than real time; print errors against the truth."""
+    from onboard.sfa import ALL_SENSORS, FilterConfig, ListenerConfig, Recording, RecordingError
+    from onboard.sfa import replay as run_replay
+
+    chosen = frozenset(name.strip() for name in sensors.split(",") if name.strip())
+    if not chosen <= ALL_SENSORS:
+        raise typer.BadParameter(f"unknown sensors {sorted(chosen - ALL_SENSORS)}")
+    if gps_sigma_m <= 0 or acceleration_sigma <= 0:
+        raise typer.BadParameter("σ must be positive")
+    config = ListenerConfig(
+        sensors=chosen,
+        filter=FilterConfig(gps_sigma_m=gps_sigma_m, acceleration_noise_mps2=acceleration_sigma),
+    )
+    try:
+        result = run_replay(Recording.load(file), config)
+    except (RecordingError, KeyError) as exc:
+        typer.echo(f"cannot replay {file}: {exc}", err=True)
+        raise typer.Exit(code=1) from exc
+    typer.echo(
+        f"sensors {','.join(sorted(chosen))}: {result.epochs_s.size} outputs, "
+        f"position error RMS {result.position_rms_m:.3f} m, max {result.position_max_m:.3f} m, "
+        f"speed error RMS {result.speed_rms_kmh:.3f} km/h"
+    )

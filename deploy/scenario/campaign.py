@@ -1,0 +1,254 @@
+"""``ato campaign``: a matrix of scenarios × seeds × fault parameters over worker processes.
+
+Each cell is one lockstep run of :func:`deploy.scenario.runner.run_scenario` in a worker
+process (its own Zenoh sessions, its own trackside database). A variation ``KEY=V1,V2`` sets a
+field of the scenario by its dotted path (``faults.0.at_s=100,150``) before the run, so a fault
+can be swept; the matrix is the product of the scenarios, the seeds and every variation.
+
+The summary counts the passes and the unsafe outcomes of each scenario and gives the
+distribution (median, p99, max) of its headline KPIs. A run is unsafe when the train went
+faster than the ETCS intervention allows (overspeed above the MRSP beyond dV_ebi), passed its
+end of authority, or reached an obstacle; a run that raised is a crash. Both are listed by cell.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import traceback
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from deploy.scenario.loader import load_scenario
+from deploy.scenario.runner import RunOptions, run_scenario
+from deploy.scenario.schema import ScenarioSpec
+from onboard.etcs import dv_ebi_mps
+
+__all__ = [
+    "FAULT_SCENARIOS",
+    "Cell",
+    "CellResult",
+    "Variation",
+    "parse_variation",
+    "run_campaign",
+    "summarise",
+]
+
+KMH_PER_MPS = 3.6
+FAULT_SCENARIOS = ("ma-shortened", "obstacle", "vigilance-absent", "ato-failure",
+                   "trackside-restart", "gps-outage", "odometer-failure", "udp-loss")  # fmt: skip
+"""The whole-stack fault scenarios: the campaign's default matrix."""
+HEADLINE_KPIS = ("max_overspeed_kmh", "ad_speed_rms_kmh", "position_error_m.rms",
+                 "min_eoa_margin_m", "traction_energy_kwh", "real_time_factor")  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Variation:
+    path: str
+    values: tuple[Any, ...]
+
+
+def parse_variation(text: str) -> Variation:
+    """``faults.0.at_s=100,150`` → the path and its values (numbers where they parse)."""
+    path, sep, values = text.partition("=")
+    if not sep or not path or not values:
+        raise ValueError(f"a variation is KEY=V1,V2,...; got {text!r}")
+    parsed: list[Any] = []
+    for value in values.split(","):
+        try:
+            parsed.append(int(value) if value.lstrip("-").isdigit() else float(value))
+        except ValueError:
+            parsed.append({"true": True, "false": False}.get(value, value))
+    return Variation(path.strip(), tuple(parsed))
+
+
+@dataclass(frozen=True)
+class Cell:
+    scenario: str
+    seed: int
+    setting: tuple[tuple[str, Any], ...] = ()
+
+    @property
+    def label(self) -> str:
+        extra = "".join(f" {path}={value}" for path, value in self.setting)
+        return f"{self.scenario} seed={self.seed}{extra}"
+
+
+@dataclass(frozen=True)
+class CellResult:
+    cell: Cell
+    kpis: dict[str, Any] | None
+    error: str | None = None
+
+    @property
+    def crashed(self) -> bool:
+        return self.kpis is None
+
+    @property
+    def unsafe(self) -> list[str]:
+        """What made the run unsafe, if anything."""
+        if self.kpis is None:
+            return []
+        kpis, found = self.kpis, []
+        over = kpis.get("max_overspeed_kmh") or 0.0
+        if over > 0.0 and over / KMH_PER_MPS > _ebi_margin_mps():
+            found.append(f"overspeed {over:.2f} km/h beyond the EBI")
+        eoa = kpis.get("min_eoa_margin_m")
+        if eoa is not None and eoa < 0.0:
+            found.append(f"EoA passed by {-eoa:.2f} m")
+        obstacle = kpis.get("min_obstacle_margin_m")
+        if obstacle is not None and obstacle < 0.0:
+            found.append(f"obstacle reached ({-obstacle:.2f} m beyond)")
+        return found
+
+
+def _ebi_margin_mps() -> float:
+    """dV_ebi at low speed: the smallest overspeed at which ETCS would brake [m/s]."""
+    return dv_ebi_mps(0.0)
+
+
+def apply_setting(spec: ScenarioSpec, setting: Sequence[tuple[str, Any]]) -> ScenarioSpec:
+    """``spec`` with each dotted path set to its value, validated again.
+
+    Raises
+    ------
+    ValueError
+        A path that names nothing in the scenario, or a value the scenario refuses.
+    """
+    data = _lists(spec.model_dump(mode="python"))
+    for path, value in setting:
+        target: Any = data
+        *parents, last = path.split(".")
+        try:
+            for part in parents:
+                target = target[int(part)] if isinstance(target, list) else target[part]
+            if isinstance(target, list):
+                target[int(last)] = value
+            elif isinstance(target, dict) and last in target:
+                target[last] = value
+            else:
+                raise KeyError(last)
+        except (KeyError, IndexError, ValueError, TypeError) as exc:
+            raise ValueError(f"{spec.name}: {path} names nothing in the scenario") from exc
+    return ScenarioSpec.model_validate(data)
+
+
+def _lists(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _lists(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_lists(v) for v in value]
+    return value
+
+
+def run_cell(cell: Cell) -> CellResult:
+    """One run (in a worker process); an exception becomes a crash with its traceback."""
+    try:
+        spec = apply_setting(load_scenario(cell.scenario), cell.setting)
+        outcome = run_scenario(spec, RunOptions(fast=True, seed=cell.seed))
+    except Exception:
+        return CellResult(cell, None, traceback.format_exc(limit=8))
+    return CellResult(cell, outcome.kpis)
+
+
+def matrix(
+    scenarios: Sequence[str], seeds: Iterable[int], variations: Sequence[Variation] = ()
+) -> list[Cell]:
+    settings = [
+        tuple(zip((v.path for v in variations), combination, strict=True))
+        for combination in itertools.product(*(v.values for v in variations))
+    ]
+    return [Cell(name, seed, setting)
+            for name in scenarios for seed in seeds for setting in settings]  # fmt: skip
+
+
+def run_campaign(
+    cells: Sequence[Cell], *, workers: int, on_result: Callable[[CellResult], None] | None = None
+) -> list[CellResult]:
+    """Every cell over ``workers`` processes; the results in the cells' order."""
+    results: dict[Cell, CellResult] = {}
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = {pool.submit(run_cell, cell): cell for cell in cells}
+        for future in as_completed(futures):
+            result = future.result()
+            results[futures[future]] = result
+            if on_result is not None:
+                on_result(result)
+    return [results[cell] for cell in cells]
+
+
+def _kpi(kpis: dict[str, Any], path: str) -> float | None:
+    value: Any = kpis
+    for part in path.split("."):
+        if not isinstance(value, dict) or part not in value:
+            return None
+        value = value[part]
+    return float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
+
+
+def _distribution(values: list[float]) -> dict[str, float] | None:
+    finite = np.asarray([v for v in values if math.isfinite(v)])
+    if finite.size == 0:
+        return None
+    return {
+        "median": float(np.median(finite)),
+        "p99": float(np.percentile(finite, 99)),
+        "max": float(finite.max()),
+    }
+
+
+def summarise(results: Sequence[CellResult]) -> dict[str, Any]:
+    """The JSON summary: per scenario, the counts and the KPI distributions; and the cells."""
+    by_scenario: dict[str, list[CellResult]] = {}
+    for result in results:
+        by_scenario.setdefault(result.cell.scenario, []).append(result)
+    scenarios = {}
+    for name, group in by_scenario.items():
+        ran = [r for r in group if r.kpis is not None]
+        scenarios[name] = {
+            "runs": len(group),
+            "passed": sum(1 for r in ran if r.kpis is not None and r.kpis["passed"]),
+            "failed": sum(1 for r in ran if r.kpis is not None and not r.kpis["passed"]),
+            "crashed": len(group) - len(ran),
+            "unsafe": sum(1 for r in ran if r.unsafe),
+            "kpis": {
+                path: _distribution(
+                    [
+                        v
+                        for r in ran
+                        if r.kpis is not None and (v := _kpi(r.kpis, path)) is not None
+                    ]  # fmt: skip
+                )
+                for path in HEADLINE_KPIS
+            },
+        }
+    return {
+        "runs": len(results),
+        "passed": sum(s["passed"] for s in scenarios.values()),
+        "crashed": sum(s["crashed"] for s in scenarios.values()),
+        "unsafe": sum(s["unsafe"] for s in scenarios.values()),
+        "scenarios": scenarios,
+        "cells": [
+            {
+                "label": r.cell.label, "scenario": r.cell.scenario, "seed": r.cell.seed,
+                "setting": dict(r.cell.setting),
+                "passed": None if r.kpis is None else r.kpis["passed"],
+                "unsafe": r.unsafe, "error": r.error,
+                "failed_expectations": [] if r.kpis is None else [
+                    e["name"] for e in r.kpis["expectations"] if not e["ok"]
+                ],
+            }
+            for r in results
+        ],
+    }  # fmt: skip
+
+
+def write_summary(summary: dict[str, Any], path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(summary, indent=2, allow_nan=False))

@@ -1,0 +1,148 @@
+"""``ato run`` on the terminal: a progress bar while the scenario runs, then the KPIs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from deploy.scenario.loader import ScenarioFileError, load_scenario
+from deploy.scenario.runner import Progress as RunProgress
+from deploy.scenario.runner import RunOptions, RunOutcome, ScenarioRunError, run_scenario
+
+__all__ = ["campaign_from_cli", "run_from_cli", "summary_table"]
+
+
+def run_from_cli(
+    scenario: str, *, fast: bool, speed: float, seed: int | None, report: Path | None
+) -> int:
+    """Run and print; the exit status: 0 passed, 1 an expectation failed, 2 could not run."""
+    console = Console(stderr=True)
+    try:
+        spec = load_scenario(scenario)
+    except ScenarioFileError as exc:
+        console.print(f"[red]{exc}[/red]")
+        return 2
+    options = RunOptions(fast=fast, speed=speed, seed=seed, report_dir=report)
+    columns = (
+        TextColumn("[bold]{task.description}"), BarColumn(),
+        TextColumn("{task.fields[sim]}"), TimeElapsedColumn(),
+    )  # fmt: skip
+    with Progress(*columns, console=console, transient=True) as bar:
+        task = bar.add_task(spec.name, total=spec.duration_s, sim="")
+
+        def show(frame: RunProgress) -> None:
+            text = (f"t={frame.sim_time_s:7.1f} s  v={frame.speed_kmh:5.1f} km/h  ETCS "
+                    f"{frame.etcs_mode}  ATO {frame.ato_state}  SC {frame.sc_state}")  # fmt: skip
+            bar.update(task, completed=frame.sim_time_s, sim=text)
+
+        try:
+            outcome = run_scenario(spec, options, progress=show)
+        except ScenarioRunError as exc:
+            console.print(f"[red]cannot run {spec.name}: {exc}[/red]")
+            return 2
+    Console().print(summary_table(outcome))
+    if report is not None:
+        written = "kpis.json, telemetry.npz, report.html" if outcome.columns else "kpis.json"
+        console.print(f"report written to {report}/ ({written})")
+    return 0 if outcome.passed else 1
+
+
+def _format(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.3f}"
+    if isinstance(value, dict):
+        return ", ".join(f"{k} {_format(v)}" for k, v in value.items())
+    return str(value)
+
+
+def summary_table(outcome: RunOutcome) -> Table:
+    """The run's headline KPIs and each expectation."""
+    kpis = outcome.kpis
+    table = Table(title=f"{kpis['scenario']}: {'PASSED' if outcome.passed else 'FAILED'}")
+    table.add_column("KPI / expectation")
+    table.add_column("value")
+    for key in ("seed", "sim_time_s", "wall_time_s", "real_time_factor", "max_overspeed_kmh",
+                "etcs_sb_count", "etcs_eb_count", "vc_eb_count", "system_decay",
+                "traction_energy_kwh", "ad_speed_rms_kmh", "position_error_m", "nmpc_ms",
+                "vc_outcome"):  # fmt: skip
+        if key in kpis:
+            table.add_row(key, _format(kpis[key]))
+    for stop in kpis["stops"]:
+        table.add_row(f"stop {stop['name']}", f"arrival {stop['arrival_error_s']:+.2f} s, "
+                      f"position {stop['stop_error_m']:+.3f} m")  # fmt: skip
+    for item in kpis["vc_interventions"]:
+        timing = (f"hazard→command {item['hazard_to_eb_command_ms']} ms, "
+                  f"hazard→full EB {item['total_to_full_eb_ms']} ms")  # fmt: skip
+        table.add_row(f"VC EB ({item['cause']})", timing)
+    for item in kpis["expectations"]:
+        mark = "[green]ok[/green]" if item["ok"] else "[red]FAIL[/red]"
+        table.add_row(f"{mark} {item['name']}", item["detail"])
+    return table
+
+
+def campaign_from_cli(
+    scenarios: list[str], *, seeds: int, first_seed: int, workers: int, vary: list[str],
+    json_path: Path | None,
+) -> int:  # fmt: skip
+    """Run the matrix and print the summary; 0 unless a run crashed or ended unsafe."""
+    from deploy.scenario.campaign import (
+        FAULT_SCENARIOS,
+        apply_setting,
+        matrix,
+        parse_variation,
+        run_campaign,
+        summarise,
+        write_summary,
+    )
+
+    console = Console(stderr=True)
+    try:
+        variations = [parse_variation(text) for text in vary]
+        names = scenarios or list(FAULT_SCENARIOS)
+        cells = matrix(names, range(first_seed, first_seed + seeds), variations)
+        for cell in {(cell.scenario, cell.setting): cell for cell in cells}.values():
+            apply_setting(load_scenario(cell.scenario), cell.setting)
+    except (ValueError, ScenarioFileError) as exc:
+        console.print(f"[red]{exc}[/red]")
+        return 2
+    with Progress(TextColumn("[bold]campaign"), BarColumn(), TextColumn("{task.completed}/"
+                  "{task.total}"), TimeElapsedColumn(), console=console) as bar:  # fmt: skip
+        task = bar.add_task("campaign", total=len(cells))
+        results = run_campaign(cells, workers=workers,
+                               on_result=lambda _r: bar.advance(task))  # fmt: skip
+    summary = summarise(results)
+    table = Table(title=f"campaign: {summary['runs']} runs, {summary['crashed']} crashed, "
+                  f"{summary['unsafe']} unsafe")  # fmt: skip
+    for column in ("scenario", "runs", "passed", "failed", "crashed", "unsafe",
+                   "max overspeed [km/h]", "min EoA margin [m]", "RTF median"):  # fmt: skip
+        table.add_column(column)
+    for name, row in summary["scenarios"].items():
+        kpis = row["kpis"]
+
+        def stat(key: str, which: str, kpis: dict[str, Any] = kpis) -> str:
+            value = kpis.get(key)
+            return "—" if value is None else f"{value[which]:.2f}"
+
+        table.add_row(name, str(row["runs"]), str(row["passed"]), str(row["failed"]),
+                      str(row["crashed"]), str(row["unsafe"]),
+                      stat("max_overspeed_kmh", "max"), _min_margin(results, name),
+                      stat("real_time_factor", "median"))  # fmt: skip
+    Console().print(table)
+    for cell in summary["cells"]:
+        if cell["error"] or cell["unsafe"] or cell["failed_expectations"]:
+            what = cell["error"] or "; ".join(cell["unsafe"] + cell["failed_expectations"])
+            Console().print(f"  {cell['label']}: {what.strip().splitlines()[-1]}")
+    if json_path is not None:
+        write_summary(summary, json_path)
+        console.print(f"summary written to {json_path}")
+    return 0 if summary["crashed"] == 0 and summary["unsafe"] == 0 else 1
+
+
+def _min_margin(results: list[Any], name: str) -> str:
+    margins = [r.kpis["min_eoa_margin_m"] for r in results if r.cell.scenario == name
+               and r.kpis is not None and r.kpis.get("min_eoa_margin_m") is not None]  # fmt: skip
+    return f"{min(margins):.2f}" if margins else "—"

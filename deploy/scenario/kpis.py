@@ -1,0 +1,195 @@
+"""The KPIs of a run (``kpis.json``, CONTRACT.md §4) and the check of a scenario's expectations.
+
+:func:`compute_kpis` turns a run's telemetry, stops and counters into the contract's keys;
+:func:`check_expectations` compares them with the scenario's ``[[expect]]`` entries. A KPI path
+is a key (``max_overspeed_kmh``), a key and a member (``position_error_m.rms``), or a list
+and a member of its items (``stops.stop_error_m``: the expectation holds when it holds for
+every stop; ``stops.count`` is the list's length).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from deploy.scenario.schema import Expectation
+
+__all__ = ["JERK_MIN_SPEED_MPS", "RunCounters", "check_expectations", "compute_kpis", "kpi_value"]
+
+KMH_PER_MPS = 3.6
+J_PER_KWH = 3.6e6
+JERK_MIN_SPEED_MPS = 0.2
+"""Jerk is measured while moving (the instant of stopping excluded), as the ADF's tests do."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunCounters:
+    """What the run counted besides its telemetry."""
+
+    etcs_sb_count: int
+    etcs_eb_count: int
+    vc_eb_count: int
+    system_decay: bool
+    traction_energy_j: float
+    regen_energy_j: float
+    max_overspeed_mps: float
+    nmpc_solve_times_s: Sequence[float]
+    force_range_n: float
+    """u_max − u_min of the vehicle, for the switch jump's fraction [N]."""
+
+
+def _rms(values: np.ndarray) -> float | None:
+    return None if values.size == 0 else float(np.sqrt(np.mean(values**2)))
+
+
+def _speed_rms_kmh(columns: Mapping[str, np.ndarray], state: str) -> float | None:
+    mask = (columns["sc_state"] == state) & np.isfinite(columns["reference_speed_mps"])
+    error = columns["speed_mps"][mask] - columns["reference_speed_mps"][mask]
+    rms = _rms(error)
+    return None if rms is None else rms * KMH_PER_MPS
+
+
+def _max_jerk(columns: Mapping[str, np.ndarray]) -> float:
+    times, accelerations = columns["time_s"], columns["acceleration_mps2"]
+    if times.size < 2:
+        return 0.0
+    jerk = np.diff(accelerations) / np.diff(times)
+    speeds, eb = columns["speed_mps"], columns["vc_eb"] > 0
+    moving = (speeds[1:] > JERK_MIN_SPEED_MPS) & (speeds[:-1] > JERK_MIN_SPEED_MPS)
+    calm = moving & ~eb[1:] & ~eb[:-1]
+    return float(np.abs(jerk[calm]).max()) if calm.any() else 0.0
+
+
+def _max_switch_fraction(columns: Mapping[str, np.ndarray], force_range_n: float) -> float | None:
+    states, demand = columns["sc_state"], columns["force_demand_n"]
+    switches = np.nonzero(states[1:] != states[:-1])[0]
+    driving = {"AD", "RD", "HRD2AD", "HAD2RD"}
+    jumps = [
+        abs(float(demand[k + 1] - demand[k]))
+        for k in switches
+        if states[k] in driving and states[k + 1] in driving
+    ]
+    return max(jumps) / force_range_n if jumps else None
+
+
+def _percentiles_ms(samples: Sequence[float]) -> dict[str, float] | None:
+    if not samples:
+        return None
+    values = np.asarray(samples) * 1000.0
+    return {
+        "p50": float(np.percentile(values, 50)),
+        "p99": float(np.percentile(values, 99)),
+        "max": float(values.max()),
+    }
+
+
+def compute_kpis(
+    columns: Mapping[str, np.ndarray],
+    *,
+    stops: Sequence[Mapping[str, Any]],
+    counters: RunCounters,
+    position_errors_m: np.ndarray,
+    vc_interventions: Sequence[Mapping[str, Any]],
+) -> dict[str, Any]:
+    """The contract's KPIs, but the run's identity and wall-clock keys (added by the runner)."""
+    errors = np.abs(position_errors_m[np.isfinite(position_errors_m)])
+    return {
+        "stops": list(stops),
+        "max_overspeed_kmh": counters.max_overspeed_mps * KMH_PER_MPS,
+        "etcs_sb_count": counters.etcs_sb_count,
+        "etcs_eb_count": counters.etcs_eb_count,
+        "vc_eb_count": counters.vc_eb_count,
+        "system_decay": counters.system_decay,
+        "traction_energy_kwh": counters.traction_energy_j / J_PER_KWH,
+        "regen_energy_kwh": counters.regen_energy_j / J_PER_KWH,
+        "max_jerk_mps3": _max_jerk(columns),
+        "ad_speed_rms_kmh": _speed_rms_kmh(columns, "AD"),
+        "rd_speed_rms_kmh": _speed_rms_kmh(columns, "RD"),
+        "max_switch_du_frac": _max_switch_fraction(columns, counters.force_range_n),
+        "position_error_m": {
+            "rms": _rms(errors) or 0.0,
+            "max": float(errors.max()) if errors.size else 0.0,
+        },
+        "nmpc_ms": _percentiles_ms(counters.nmpc_solve_times_s),
+        "vc_interventions": list(vc_interventions),
+        **_energy_kpis(columns),
+    }
+
+
+RANGE_EXTENDER_SETTLE_S = 120.0
+"""The range extender's power is averaged from this long after the SOC's minimum [s]."""
+
+
+def _energy_kpis(columns: Mapping[str, np.ndarray]) -> dict[str, float | None]:
+    """Seed 003 §7: the SOC's minimum and when, the range extender's power after it, the SOC
+    at the end; None on plants without a powertrain."""
+    soc, times = columns["soc"], columns["time_s"]
+    if soc.size == 0 or not np.isfinite(soc).all():
+        return {"soc_end": None, "soc_min": None, "soc_min_time_s": None,
+                "range_extender_kw_after_soc_min": None}  # fmt: skip
+    lowest = int(np.argmin(soc))
+    after = times > times[lowest] + RANGE_EXTENDER_SETTLE_S
+    extender = columns["range_extender_kw"][after]
+    return {
+        "soc_end": float(soc[-1]),
+        "soc_min": float(soc[lowest]),
+        "soc_min_time_s": float(times[lowest]),
+        "range_extender_kw_after_soc_min": float(extender.mean()) if extender.size else None,
+    }
+
+
+def kpi_value(kpis: Mapping[str, Any], path: str) -> Any:
+    """The value at ``path``; a list's member gives the list of its items' values."""
+    head, _, rest = path.partition(".")
+    if head not in kpis:
+        raise KeyError(f"no KPI {head!r}")
+    value = kpis[head]
+    if not rest:
+        return value
+    if isinstance(value, list):
+        if rest == "count":
+            return len(value)
+        return [item[rest] for item in value]
+    if isinstance(value, Mapping):
+        if rest not in value:
+            raise KeyError(f"no KPI {path!r}")
+        return value[rest]
+    raise KeyError(f"{head} has no member {rest!r}")
+
+
+def _holds(value: Any, op: str, expected: Any) -> bool:
+    if value is None:
+        return False
+    if isinstance(value, list):
+        # An expectation on every stop holds on no stop at all only vacuously: it fails.
+        return bool(value) and all(_holds(item, op, expected) for item in value)
+    if op == "abs<=":
+        return bool(abs(value) <= expected)
+    if isinstance(value, float) and math.isnan(value):
+        return False
+    comparisons = {
+        "<=": value <= expected, "<": value < expected, ">=": value >= expected,
+        ">": value > expected, "==": value == expected, "!=": value != expected,
+    }  # fmt: skip
+    return bool(comparisons[op])
+
+
+def check_expectations(
+    kpis: Mapping[str, Any], expectations: Sequence[Expectation]
+) -> list[dict[str, Any]]:
+    """Each expectation with whether it holds and what was found."""
+    results = []
+    for expectation in expectations:
+        name = expectation.name or f"{expectation.kpi} {expectation.op} {expectation.value}"
+        try:
+            value = kpi_value(kpis, expectation.kpi)
+        except KeyError as exc:
+            results.append({"name": name, "ok": False, "detail": str(exc.args[0])})
+            continue
+        ok = _holds(value, expectation.op, expectation.value)
+        results.append({"name": name, "ok": ok, "detail": f"found {value!r}"})
+    return results

@@ -1,0 +1,725 @@
+"""``ato run``: one scenario with the whole stack in one process.
+
+The trackside service (its FastAPI app, in process, on a SQLite file in a scratch directory),
+the onboard node and the simulated operator run in this process; the trackside's Zenoh session
+listens on a free loopback port and the onboard's session connects to it, so every message
+crosses a real Zenoh link; the operator's commands leave from the trackside's session, as the
+console's do. The onboard runs in lockstep on a :class:`SimClock`
+(``fast``) or paced at wall time × ``speed`` on a :class:`RealTimeClock`; either way the runner
+advances it in slices of :data:`SLICE_S` and acts between slices, as an operator at the console
+would: the scenario's actions in file order, each once its time and its condition hold; the
+simulated operator's answers to the Vital Control; the faults as their time comes.
+
+A telemetry recorder on the node's executive samples the truth; at the end the KPIs
+(CONTRACT.md §4) are computed and the expectations checked, and with a report directory
+``kpis.json``, ``telemetry.npz`` and ``report.html`` are written.
+
+Scenarios with a ``[vc]`` table run one scenario of the Vital Control catalogue instead
+(``onboard.vc.runner``): the VC library with its emulated I/O in lockstep, on a scripted train.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import secrets
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import zenoh
+from fastapi.testclient import TestClient
+
+from deploy.ports import loopback_endpoint
+from deploy.scenario.conditions import State
+from deploy.scenario.kpis import RunCounters, check_expectations, compute_kpis
+from deploy.scenario.report import render_report
+from deploy.scenario.schema import (
+    Action,
+    AtoFailure,
+    Fault,
+    Obstacle,
+    OdometerFailure,
+    RelayFault,
+    ScenarioSpec,
+    SensorDropout,
+    ShortenedAuthority,
+    TachometerFault,
+    TracksideRestart,
+    UdpLinkFault,
+    VigilanceAbsent,
+)
+from deploy.scenario.telemetry import TelemetryRecorder
+from onboard.node import OnboardNode, OnboardSettings
+from onboard.plant.sensors import SensorFaults, TimeWindow
+from onboard.runtime import RealTimeClock, SimClock
+from onboard.sfa.chain import SensorSettings
+from onboard.sfa.link import LinkFaults
+from onboard.vc import hardware as vc_hardware
+from onboard.vc.installation import VcFaults
+from onboard.vc.runner import ScenarioResult
+from onboard.vc.runner import run_scenario as run_vc_scenario
+from protocol import ZenohSettings, open_session
+from protocol import messages as m
+from trackdb import TrackMap, load_seed_line
+from trackside.config import Settings
+from trackside.main import create_app
+
+__all__ = ["SLICE_S", "Progress", "RunOptions", "RunOutcome", "ScenarioRunError", "run_scenario"]
+
+SLICE_S = 0.2
+"""Simulated time between two looks of the operator [s] (one control period)."""
+STANDSTILL_KMH = 0.036
+JOURNEY_TIMEOUT_S = 10.0
+"""How long the operator waits for the vehicle's journey acknowledgement [s, simulated]."""
+WAIT_S = 10.0
+"""How long, in wall time, a message sent to the vehicle may take to reach it [s]."""
+OBSTACLE_MARGIN_M = 20.0
+"""The RBC ends the MA this far before a reported obstacle [m]."""
+WHOLE_STACK_FAULTS = (AtoFailure, Obstacle, OdometerFailure, RelayFault, SensorDropout,
+                      ShortenedAuthority, TachometerFault, TracksideRestart, UdpLinkFault,
+                      VigilanceAbsent)  # fmt: skip
+"""The faults a whole-stack run injects (docs/scenarios.md)."""
+
+
+class ScenarioRunError(RuntimeError):
+    """The run could not be carried out (not: an expectation failed)."""
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    fast: bool = True
+    """Lockstep, as fast as possible; otherwise paced at wall time × ``speed``."""
+    speed: float = 1.0
+    seed: int | None = None
+    """Overrides the scenario's seed."""
+    report_dir: Path | None = None
+
+
+@dataclass(frozen=True)
+class Progress:
+    """What the progress bar shows, once per slice."""
+
+    sim_time_s: float
+    duration_s: float
+    speed_kmh: float
+    etcs_mode: str
+    ato_state: str
+    sc_state: str
+
+
+@dataclass
+class RunOutcome:
+    kpis: dict[str, Any]
+    columns: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        return bool(self.kpis["passed"])
+
+
+ProgressCallback = Callable[[Progress], None]
+
+
+def run_scenario(
+    spec: ScenarioSpec, options: RunOptions = RunOptions(), *,
+    progress: ProgressCallback | None = None,
+) -> RunOutcome:  # fmt: skip
+    """Run ``spec``; the outcome's ``kpis`` follow CONTRACT.md §4."""
+    seed = spec.seed if options.seed is None else options.seed
+    started = time.perf_counter()
+    if spec.vc is not None:
+        outcome = _run_vc(spec, seed)
+    else:
+        with _Stack.open(spec, options, seed) as stack:
+            outcome = stack.run(progress)
+    wall_s = time.perf_counter() - started
+    sim_s = float(outcome.kpis["sim_time_s"])
+    outcome.kpis.update(
+        wall_time_s=wall_s, real_time_factor=sim_s / wall_s if wall_s > 0 else math.inf
+    )
+    if options.report_dir is not None:
+        write_report(outcome, options.report_dir)
+    return outcome
+
+
+def write_report(outcome: RunOutcome, directory: Path) -> None:
+    """``kpis.json``, and for whole-stack runs ``telemetry.npz`` and ``report.html``."""
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / "kpis.json").write_text(json.dumps(outcome.kpis, indent=2, allow_nan=False))
+    if outcome.columns:
+        np.savez_compressed(directory / "telemetry.npz", **outcome.columns)  # type: ignore[arg-type]
+        (directory / "report.html").write_text(render_report(outcome.kpis, outcome.columns))
+
+
+def _ordered_keys(kpis: dict[str, Any]) -> dict[str, Any]:
+    first = ("scenario", "passed", "seed", "sim_time_s", "wall_time_s", "real_time_factor")
+    return {key: kpis[key] for key in first if key in kpis} | {
+        key: value for key, value in kpis.items() if key not in first
+    }
+
+
+# -- the Vital Control catalogue ---------------------------------------------------------------
+
+
+def _ms(value: float | None) -> float | None:
+    return None if value is None else round(value * 1000.0, 3)
+
+
+def _run_vc(spec: ScenarioSpec, seed: int) -> RunOutcome:
+    assert spec.vc is not None
+    from onboard.vc.catalogue import scenario as catalogue_scenario
+
+    try:
+        scenario = catalogue_scenario(spec.vc.catalogue)
+    except KeyError as exc:
+        raise ScenarioRunError(f"no VC catalogue scenario {spec.vc.catalogue!r}") from exc
+    result = run_vc_scenario(scenario, replicas=spec.vc.replicas, seed=seed)
+    kpis: dict[str, Any] = {
+        "scenario": spec.name, "seed": seed, "sim_time_s": scenario.duration_s,
+        "stops": [], "max_overspeed_kmh": 0.0, "etcs_sb_count": 0, "etcs_eb_count": 0,
+        "vc_eb_count": sum(1 for e in result.events if e.kind.value == "eb_commanded"),
+        "system_decay": result.decay_s is not None, "traction_energy_kwh": 0.0,
+        "regen_energy_kwh": 0.0, "max_jerk_mps3": 0.0, "ad_speed_rms_kmh": None,
+        "rd_speed_rms_kmh": None, "max_switch_du_frac": None,
+        "position_error_m": {"rms": 0.0, "max": 0.0}, "nmpc_ms": None,
+        "vc_interventions": _vc_interventions(result),
+        "vc_outcome": result.outcome.value, "vc_expected_outcome": result.expected.value,
+        "vc_decay_reasons": list(result.decay_reasons),
+    }  # fmt: skip
+    kpis["expectations"] = check_expectations(kpis, spec.expect)
+    kpis["passed"] = all(item["ok"] for item in kpis["expectations"])
+    return RunOutcome(_ordered_keys(kpis))
+
+
+def _vc_interventions(result: ScenarioResult) -> list[dict[str, Any]]:
+    if result.eb_command_s is None:
+        return []
+    hazard = result.hazard_s
+    return [{
+        "cause": result.key,
+        "hazard_to_eb_command_ms": None if hazard is None else _ms(result.eb_command_s - hazard),
+        "total_to_full_eb_ms": (
+            None if hazard is None or result.full_eb_s is None else _ms(result.full_eb_s - hazard)
+        ),
+    }]  # fmt: skip
+
+
+# -- the whole stack ---------------------------------------------------------------------------
+
+
+@dataclass
+class _ActionLog:
+    action: str
+    at_s: float
+    accepted: bool
+    detail: str | None = None
+
+
+class _Stack:
+    """Trackside, onboard and operator of one run, wired together."""
+
+    def __init__(
+        self, spec: ScenarioSpec, options: RunOptions, seed: int, scratch: Path,
+        trackside_zenoh: zenoh.Session, node: OnboardNode,
+    ) -> None:  # fmt: skip
+        self.spec, self.options, self.seed = spec, options, seed
+        self.trackside_zenoh = trackside_zenoh
+        simulated = (spec.vehicle.id,) if spec.operator.simulated else ()
+        self.settings = Settings(
+            database_url=f"sqlite:///{scratch / 'trackside.db'}", zenoh_connect=(),
+            admin_user="scenario", admin_password=secrets.token_urlsafe(16),
+            simulated_operators=simulated,
+            simulated_operator_reaction_s=spec.operator.reaction_s,
+            simulated_operator_thread=False,
+        )  # fmt: skip
+        self.client: TestClient | None = None
+        self.headers: dict[str, str] = {}
+        self._selected = False
+        self.node = node
+        self.operator_present = spec.operator.simulated
+        self.recorder = TelemetryRecorder(node)
+        self.recorder.register()
+        self.recorder.hazards_s.extend(
+            fault.start_s
+            for fault in spec.faults
+            if isinstance(fault, RelayFault | TachometerFault)
+        )
+        self.actions: list[_ActionLog] = []
+        self.failures: list[str] = []
+        self._next_action = 0
+        self._armed_s = 0.0
+        self._done: set[int] = set()
+        """The one-shot faults already injected (by index)."""
+
+    @classmethod
+    @contextmanager
+    def open(cls, spec: ScenarioSpec, options: RunOptions, seed: int) -> Iterator[_Stack]:
+        unwired = [f.kind for f in spec.faults if not isinstance(f, WHOLE_STACK_FAULTS)]
+        if unwired:
+            raise ScenarioRunError(f"faults not injected in whole-stack runs: {unwired}")
+        with ExitStack() as stack:
+            scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ato-run-")))
+            endpoint = loopback_endpoint()
+            trackside_zenoh = stack.enter_context(
+                open_session(ZenohSettings(mode="peer", connect=(), listen=(endpoint,)))
+            )
+            onboard_zenoh = stack.enter_context(
+                open_session(ZenohSettings(mode="peer", connect=(endpoint,)))
+            )
+            vehicle = spec.vehicle
+            clock = SimClock() if options.fast else RealTimeClock(options.speed)
+            node = OnboardNode(
+                OnboardSettings(
+                    vehicle_id=vehicle.id, fidelity=vehicle.fidelity,
+                    start_position_m=vehicle.start_position_m,
+                    energy_plans=vehicle.energy_plans, vc_replicas=vehicle.vc_replicas,
+                    vc_faults=_vc_faults(spec.faults), initial_soc=vehicle.initial_soc,
+                    sensors=_sensor_settings(spec.faults, seed),
+                ),
+                session=onboard_zenoh, clock=clock, track_map=TrackMap(load_seed_line(spec.line)),
+            )  # fmt: skip
+            stack.callback(node.close)
+            run = cls(spec, options, seed, scratch, trackside_zenoh, node)
+            run.start_trackside()
+            stack.callback(run.stop_trackside)
+            yield run
+
+    def start_trackside(self) -> None:
+        """The service (a new app on the same database and Zenoh session), and a login."""
+        client = TestClient(create_app(self.settings, zenoh_session=self.trackside_zenoh))
+        client.__enter__()
+        self.client = client
+        password = self.settings.admin_password
+        assert password is not None
+        answer = client.post("/api/v1/auth/token", data={
+            "username": "scenario", "password": password.get_secret_value(),
+        })  # fmt: skip
+        self.headers = {"Authorization": f"Bearer {answer.json()['access_token']}"}
+        self._selected = False
+
+    def _select(self) -> None:
+        """Hold the vehicle, as a driver at the console does before commanding it (once the
+        trackside has seen it; the hold is stored, selecting again is harmless)."""
+        if self._selected:
+            return
+        url = f"/api/v1/vehicles/{self.spec.vehicle.id}"
+        if not _wait(lambda: self.rest.get(url, headers=self.headers).status_code == 200):
+            raise ScenarioRunError("the trackside never saw the vehicle")
+        selected = self.rest.post(f"{url}/select", headers=self.headers)
+        if selected.status_code != 200:
+            raise ScenarioRunError(f"cannot select the vehicle: {selected.text[:200]}")
+        self._selected = True
+
+    def stop_trackside(self) -> None:
+        if self.client is not None:
+            self.client.__exit__(None, None, None)
+            self.client = None
+
+    @property
+    def rest(self) -> TestClient:
+        if self.client is None:
+            raise ScenarioRunError("the trackside is down")
+        return self.client
+
+    # -- the loop ------------------------------------------------------------------------------
+
+    def run(self, progress: ProgressCallback | None) -> RunOutcome:
+        spec, node = self.spec, self.node
+        end_when = None if spec.end_when is None else _condition(spec.end_when)
+        while node.clock.now_s < spec.duration_s - 1e-9:
+            state = self.state()
+            if end_when is not None and end_when(state):
+                break
+            self._faults(node.clock.now_s)
+            if not self._act(state):
+                break
+            self._answer_vc()
+            self._run(min(SLICE_S, spec.duration_s - node.clock.now_s))
+            if progress is not None:
+                progress(self._progress())
+        if self._next_action < len(spec.actions):
+            pending = spec.actions[self._next_action]
+            self.failures.append(f"action {self._next_action + 1} ({pending.do}) never happened")
+        return self._outcome()
+
+    def _run(self, duration_s: float) -> None:
+        self.node.run(duration_s)
+
+    def _progress(self) -> Progress:
+        stack = self.node.stack
+        return Progress(
+            sim_time_s=self.node.clock.now_s, duration_s=self.spec.duration_s,
+            speed_kmh=self.node.plant.speed_mps * 3.6, etcs_mode=stack.etcs.mode.value,
+            ato_state=stack.ato_state.value, sc_state=stack.driving.state.value,
+        )  # fmt: skip
+
+    def state(self) -> State:
+        """The fields of ``deploy.scenario.conditions`` now."""
+        node = self.node
+        stack, plant = node.stack, node.plant
+        vital = stack.vital
+        driving = stack.driving
+        standstill = plant.speed_mps * 3.6 < STANDSTILL_KMH
+        ended = (
+            driving.journey is not None and driving.next_stop(plant.position_m) is None
+            and standstill
+        )  # fmt: skip
+        return {
+            "time_s": node.clock.now_s,
+            "position_m": node.track_map.normalise(plant.position_m),
+            "speed_kmh": plant.speed_mps * 3.6,
+            "etcs_mode": stack.etcs.mode.value,
+            "ato_state": stack.ato_state.value,
+            "sc_state": driving.state.value,
+            "standstill": standstill,
+            "vc_eb": vital is not None and vital.eb_commanded,
+            "vc_decay": vital is not None and vital.outputs.system_decay,
+            "journey_accepted": stack.journey_plan is not None,
+            "journey_ended": ended,
+        }
+
+    # -- faults --------------------------------------------------------------------------------
+
+    def _faults(self, now_s: float) -> None:
+        present = self.spec.operator.simulated
+        internal_fault = False
+        for index, fault in enumerate(self.spec.faults):
+            if isinstance(fault, VigilanceAbsent):
+                present &= not fault.start_s <= now_s < fault.end_s
+            elif isinstance(fault, AtoFailure):
+                active = fault.start_s <= now_s < fault.end_s
+                if active and not self.node.stack.internal_fault and not internal_fault:
+                    self.recorder.hazards_s.append(now_s)
+                internal_fault |= active
+            elif isinstance(fault, Obstacle | ShortenedAuthority | TracksideRestart):
+                if index not in self._done and now_s >= fault.at_s:
+                    self._done.add(index)
+                    self.recorder.hazards_s.append(now_s)
+                    self._inject(fault)
+        self.operator_present = present
+        self.node.stack.internal_fault = internal_fault
+
+    def _inject(self, fault: Fault) -> None:
+        if isinstance(fault, TracksideRestart):
+            self.stop_trackside()
+            self._run(fault.down_s)
+            self.start_trackside()
+            return
+        track_map, plant = self.node.track_map, self.node.plant
+        here = track_map.normalise(plant.position_m)
+        if isinstance(fault, Obstacle):
+            ahead = _forward_m(self.node, here, fault.position_m)
+            self.recorder.obstacle_m = plant.position_m + ahead
+            end_m = here + ahead - OBSTACLE_MARGIN_M
+        else:
+            assert isinstance(fault, ShortenedAuthority)
+            end_m = here + _forward_m(self.node, here, fault.end_of_authority_m)
+        answer = self._movement_authority(end_m, absolute=True)
+        accepted = answer.status_code in (200, 201)
+        self.actions.append(
+            _ActionLog(f"rbc.{fault.kind}", self.node.clock.now_s, accepted, answer.text[:200])
+        )
+
+    def _movement_authority(self, end_m: float, *, absolute: bool = False) -> Any:
+        """The RBC (REST, as admin) issues an MA from here to ``end_m`` (a chainage, or with
+        ``absolute`` a position already unwrapped from here), or shortens the one it holds; the
+        run goes on once the vehicle has the message."""
+        here = self.node.track_map.normalise(self.node.plant.position_m)
+        if not absolute:
+            end_m = here + _forward_m(self.node, here, end_m)
+        url = f"/api/v1/rbc/{self.spec.vehicle.id}/ma"
+        before = self.node.inputs_received[1]
+        if self.rest.get(url, headers=self.headers).status_code == 404 or not absolute:
+            body = {"start_m": here, "end_of_authority_m": end_m, "line_id": self.spec.line}
+            answer = self.rest.post(url, json=body, headers=self.headers)
+        else:
+            answer = self.rest.post(f"{url}/shorten", json={"end_of_authority_m": end_m},
+                                    headers=self.headers)  # fmt: skip
+        if answer.status_code in (200, 201) and not _wait(
+            lambda: self.node.inputs_received[1] > before
+        ):
+            raise ScenarioRunError("the RBC's MA never reached the vehicle")
+        return answer
+
+    # -- actions -------------------------------------------------------------------------------
+
+    def _act(self, state: State) -> bool:
+        """Do the actions due now; False when one timed out (the run stops)."""
+        actions = self.spec.actions
+        while self._next_action < len(actions):
+            action = actions[self._next_action]
+            now_s = float(state["time_s"])
+            if now_s - self._armed_s > action.timeout_s:
+                self.failures.append(
+                    f"action {self._next_action + 1} ({action.do}) timed out after "
+                    f"{action.timeout_s:.0f} s"
+                )
+                return False
+            if not self._due(action, state):
+                return True
+            self._do(action)
+            self._next_action += 1
+            self._armed_s = now_s
+            state = self.state()
+        return True
+
+    def _due(self, action: Action, state: State) -> bool:
+        now_s = float(state["time_s"])
+        if action.at_s is not None and now_s < action.at_s:
+            return False
+        if action.after_s is not None and now_s < self._armed_s + action.after_s:
+            return False
+        condition = action.condition
+        return condition is None or condition.holds(state)
+
+    def _do(self, action: Action) -> None:
+        now_s = self.node.clock.now_s
+        self._select()
+        if action.do == "issue_ma":
+            assert action.end_of_authority_m is not None
+            answer = self._movement_authority(action.end_of_authority_m)
+            accepted = answer.status_code in (200, 201)
+            self.actions.append(_ActionLog(action.do, now_s, accepted, answer.text[:200]))
+            if not accepted:
+                self.failures.append(f"issue_ma at {now_s:.1f} s refused: {answer.text[:200]}")
+            return
+        if action.do == "send_journey":
+            accepted, detail = self._send_journey()
+            self.actions.append(_ActionLog(action.do, now_s, accepted, detail))
+            if not accepted:
+                self.failures.append(f"journey refused: {detail}")
+            return
+        route, body = self._route(action)
+        if route is None:
+            self.actions.append(_ActionLog(action.do, now_s, False, "no such request pending"))
+            self.failures.append(f"{action.do} at {now_s:.1f} s: no such request pending")
+            return
+        answer = self.rest.post(f"/api/v1/vehicles/{self.spec.vehicle.id}/{route}", json=body,
+                                headers=self.headers)  # fmt: skip
+        if answer.status_code != 200:
+            detail = f"{answer.status_code}: {answer.text[:200]}"
+            self.actions.append(_ActionLog(action.do, now_s, False, detail))
+            self.failures.append(f"{action.do} at {now_s:.1f} s failed: {detail}")
+            return
+        reply = answer.json()
+        self.actions.append(_ActionLog(action.do, now_s, reply["accepted"], reply["reason"]))
+        if not reply["accepted"]:
+            self.failures.append(f"{action.do} at {now_s:.1f} s refused: {reply['reason']}")
+
+    def _answer_vc(self) -> None:
+        """The trackside's simulated operator looks at the vehicle's state now and answers what
+        is due; the run goes on once the vehicle has its answers (so they reach it at a tick
+        fixed by simulated time)."""
+        if not self.operator_present or self.client is None:
+            return
+        thread = self.client.app.state.simulated_operator  # type: ignore[attr-defined]
+        if thread is None:
+            return
+        operator = thread.operator
+        if operator.step(self.node.status(self.node.clock.now_ns)):
+            vehicle = self.spec.vehicle.id
+            if not _wait(lambda: operator.outstanding(vehicle) == 0):
+                raise ScenarioRunError("the simulated operator's answer never came back")
+
+    def _pending(self, kind: m.OperatorRequestKind) -> m.OperatorRequest | None:
+        """The unconfirmed VC request of ``kind`` the vehicle shows now, if any."""
+        status = self.node.stack.vital_status()
+        if status is None:
+            return None
+        for request in status.operator_requests:
+            if request.kind is kind and not request.confirmed:
+                return request
+        return None
+
+    def _route(self, action: Action) -> tuple[str | None, dict[str, Any]]:
+        """The remote-driver route of an action and its body (None: no request to answer)."""
+        confirmations = {
+            "confirm_rearm": (m.OperatorRequestKind.EB_REARM, "eb-rearm"),
+            "isolate_etcs": (m.OperatorRequestKind.ETCS_ISOLATION, "etcs-isolation"),
+            "insert_etcs": (m.OperatorRequestKind.ETCS_INSERTION, "etcs-insertion"),
+        }
+        if action.do in confirmations:
+            kind, route = confirmations[action.do]
+            pending = self._pending(kind)
+            return (None, {}) if pending is None else (route, {"number": pending.number})
+        if action.do == "rd_target_speed":
+            return "rd-target-speed", {"target_speed_kmh": action.speed_kmh}
+        return action.do.replace("_", "-"), {}
+
+    def _send_journey(self) -> tuple[bool, str | None]:
+        """Store the journey from where the vehicle stands, and send it through the REST API
+        while the vehicle runs (it answers at its next commands tick)."""
+        journey = self.spec.journey
+        assert journey is not None
+        body = {
+            "id": journey.id, "line_id": self.spec.line,
+            "start_position_m": self.node.track_map.normalise(self.node.plant.position_m),
+            "max_speed_mps": None if journey.max_speed_kmh is None else journey.max_speed_kmh / 3.6,
+            "timing_points": [p.model_dump(mode="json") for p in journey.timing_points],
+        }  # fmt: skip
+        stored = self.rest.post("/api/v1/journeys", json=body, headers=self.headers)
+        if stored.status_code != 201:
+            return False, f"journey not stored ({stored.status_code}): {stored.text}"
+        answer: list[Any] = []
+
+        def send() -> None:
+            answer.append(self.rest.post(
+                f"/api/v1/vehicles/{self.spec.vehicle.id}/journey-profile",
+                json={"journey_id": journey.id, "timeout_s": JOURNEY_TIMEOUT_S},
+                headers=self.headers,
+            ))  # fmt: skip
+
+        journeys_before = self.node.inputs_received[0]
+        sender = threading.Thread(target=send, daemon=True)
+        sender.start()
+        # The profile reaches the node between slices; the next slice takes it and answers, so
+        # the run does not depend on how fast the messages travel.
+        received = _wait(lambda: self.node.inputs_received[0] > journeys_before, sender)
+        if received:
+            self._run(SLICE_S)
+        sender.join(JOURNEY_TIMEOUT_S)
+        if not answer:
+            return False, "the trackside did not answer"
+        response = answer[0]
+        if response.status_code != 200:
+            return False, f"{response.status_code}: {response.text}"
+        reply = response.json()
+        return bool(reply["accepted"]), reply.get("reason")
+
+    # -- the outcome ---------------------------------------------------------------------------
+
+    def _odometer_detection_s(self) -> float | None:
+        """From the first odometer fault to the localisation reporting it, if both happened."""
+        starts = [f.start_s for f in self.spec.faults
+                  if isinstance(f, OdometerFailure) or (isinstance(f, SensorDropout)
+                                                        and f.sensor == "odometer")]  # fmt: skip
+        lost = self.recorder.sensor_lost_s.get("odometer")
+        if not starts or lost is None:
+            return None
+        return round(lost - min(starts), 3)
+
+    def _outcome(self) -> RunOutcome:
+        node, recorder = self.node, self.recorder
+        stack, plant = node.stack, node.plant
+        columns = recorder.arrays()
+        low, high = plant.force_limits_n(0.0)
+        counters = RunCounters(
+            etcs_sb_count=stack.etcs.service_brake_interventions,
+            etcs_eb_count=stack.etcs.emergency_brake_interventions,
+            vc_eb_count=recorder.maxima.vc_eb_count,
+            system_decay=stack.vital is not None and stack.vital.outputs.system_decay,
+            traction_energy_j=plant.traction_energy_j,
+            regen_energy_j=float(getattr(plant, "regen_energy_j", 0.0)),
+            max_overspeed_mps=max(recorder.maxima.overspeed_mps, 0.0),
+            nmpc_solve_times_s=stack.driving.nmpc.stats.solve_times_s,
+            force_range_n=high - low,
+        )  # fmt: skip
+        stops = [
+            {
+                "name": stop.name, "planned_arrival_s": stop.planned_arrival_s,
+                "arrival_error_s": stop.arrival_s - stop.planned_arrival_s,
+                "stop_error_m": stop.stop_error_m,
+            }
+            for stop in recorder.stops
+        ]  # fmt: skip
+        errors = columns["estimated_position_m"] - columns["position_m"]
+        kpis = compute_kpis(
+            columns, stops=stops, counters=counters, position_errors_m=errors,
+            vc_interventions=recorder.vc_interventions,
+        )  # fmt: skip
+        kpis.update(
+            scenario=self.spec.name, seed=self.seed, sim_time_s=node.clock.now_s,
+            min_eoa_margin_m=_finite(recorder.maxima.eoa_margin_m),
+            min_obstacle_margin_m=_finite(recorder.maxima.obstacle_margin_m),
+            sensor_lost_s=dict(recorder.sensor_lost_s),
+            odometer_failure_detection_s=self._odometer_detection_s(),
+            lockstep_barrier_misses=node.barrier_misses if self.options.fast else None,
+        )  # fmt: skip
+        kpis["actions"] = [vars(item) for item in self.actions]
+        expectations = check_expectations(kpis, self.spec.expect)
+        expectations += [{"name": failure, "ok": False, "detail": failure}
+                         for failure in self.failures]  # fmt: skip
+        kpis["expectations"] = expectations
+        kpis["passed"] = all(item["ok"] for item in expectations)
+        return RunOutcome(_ordered_keys(kpis), columns)
+
+
+def _wait(
+    condition: Callable[[], bool], worker: threading.Thread | None = None,
+    timeout_s: float = WAIT_S,
+) -> bool:  # fmt: skip
+    """Wait in wall time (the simulation stands still) until ``condition`` holds; False when
+    it does not within ``timeout_s`` or ``worker`` ends first."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline or (worker is not None and not worker.is_alive()):
+            return condition()
+        time.sleep(0.0005)
+    return True
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def _forward_m(node: OnboardNode, from_m: float, to_m: float) -> float:
+    """Along the line from ``from_m`` to ``to_m`` (round the ring if need be) [m]."""
+    if node.track_map.line.ring:
+        return (to_m - from_m) % node.track_map.length_m
+    return to_m - from_m
+
+
+def _sensor_settings(faults: tuple[Fault, ...], seed: int) -> SensorSettings:
+    """The emulated sensors and their UDP link with the scenario's faults, seeded."""
+    outages: dict[str, list[TimeWindow]] = {"imu": [], "odometer": [], "gps": []}
+    stuck: list[TimeWindow] = []
+    for fault in faults:
+        if isinstance(fault, SensorDropout):
+            outages[fault.sensor].append(TimeWindow(fault.start_s, fault.end_s))
+        elif isinstance(fault, OdometerFailure):
+            window = TimeWindow(fault.start_s, fault.end_s)
+            (outages["odometer"] if fault.mode == "silent" else stuck).append(window)
+    link = LinkFaults()
+    udp = [fault for fault in faults if isinstance(fault, UdpLinkFault)]
+    if len(udp) > 1:
+        raise ScenarioRunError("one udp_link fault per scenario")
+    if udp:
+        fault = udp[0]
+        link = LinkFaults(
+            loss_rate=fault.loss, reorder_rate=fault.reorder, duplicate_rate=fault.duplicate,
+            corrupt_rate=fault.corrupt, faults_from_s=max(fault.start_s, link.faults_from_s),
+            faults_until_s=fault.end_s,
+        )  # fmt: skip
+    return SensorSettings(
+        seed=seed, link=link,
+        faults=SensorFaults(
+            imu_outages=tuple(outages["imu"]), odometer_outages=tuple(outages["odometer"]),
+            gps_outages=tuple(outages["gps"]), odometer_stuck_at_zero=tuple(stuck),
+        ),
+    )  # fmt: skip
+
+
+def _vc_faults(faults: tuple[Fault, ...]) -> VcFaults:
+    relay = [vc_hardware.RelayFault(start_s=f.start_s, end_s=f.end_s)
+             for f in faults if isinstance(f, RelayFault)]  # fmt: skip
+    tachometer = [
+        vc_hardware.TachometerFault(
+            mode=vc_hardware.TachometerFaultMode(f.mode), start_s=f.start_s, end_s=f.end_s
+        )  # fmt: skip
+        for f in faults
+        if isinstance(f, TachometerFault)
+    ]
+    return VcFaults(relay=relay, tachometer=tachometer)
+
+
+def _condition(text: str) -> Callable[[State], bool]:
+    from deploy.scenario.conditions import parse_condition
+
+    return parse_condition(text).holds

@@ -1,0 +1,258 @@
+"""The scenario file (TOML, ``deploy/scenarios/``): what a run sets up, does and expects.
+
+A scenario names the line, the vehicle and its plant fidelity, the journey, the operator's
+actions, the faults to inject and the expectations on the KPIs of ``kpis.json``
+(CONTRACT.md §4). Units are SI unless the name says otherwise (``speed_kmh``). Every model
+forbids unknown keys, so a misspelt key is an error with its line, not a silent default.
+
+Actions run in file order: each waits for its time (``at_s``: simulated time; ``after_s``:
+since the previous action) and its condition (``when``), then does one thing through the
+remote driver's API, as an operator at the console would.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from deploy.scenario.conditions import Condition, parse_condition
+from trackdb.journey import JourneyTimingPoint
+
+__all__ = [
+    "Action",
+    "Expectation",
+    "Fault",
+    "JourneySpec",
+    "OperatorSpec",
+    "ScenarioSpec",
+    "VcCatalogueSpec",
+    "VehicleSpec",
+]
+
+Seconds = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class VehicleSpec(_Model):
+    id: str = Field(default="URV1", pattern=r"^[A-Za-z0-9_-]{1,32}$")
+    fidelity: Literal["point_mass", "bogie"] = "point_mass"
+    start_position_m: float = Field(default=0.0, ge=0.0, allow_inf_nan=False)
+    initial_soc: float = Field(default=0.9, gt=0.0, le=1.0, description="Bogie only: battery SOC")
+    vc_replicas: Literal[1, 2] = 1
+    energy_plans: bool = True
+
+
+class OperatorSpec(_Model):
+    simulated: bool = True
+    """A simulated operator answers the Vital Control's vigilance and EB-rearm requests."""
+    reaction_s: float = Field(default=1.0, ge=0.0, le=60.0, allow_inf_nan=False)
+
+
+class JourneySpec(_Model):
+    """The journey the operator sends; it starts where the vehicle stands when sent."""
+
+    id: str = Field(pattern=r"^[A-Za-z0-9_.-]{1,64}$")
+    max_speed_kmh: float | None = Field(default=None, gt=0.0, le=540.0, allow_inf_nan=False)
+    timing_points: tuple[JourneyTimingPoint, ...] = Field(min_length=1, max_length=500)
+
+
+ActionKind = Literal[
+    "rd_target_speed",
+    "send_journey",
+    "engage",
+    "disengage",
+    "emergency_brake",
+    "confirm_rearm",
+    "isolate_etcs",
+    "insert_etcs",
+    "issue_ma",
+]
+
+
+class Action(_Model):
+    """One operator action: when, and what."""
+
+    do: ActionKind
+    at_s: Seconds | None = None
+    """Not before this simulated time [s]."""
+    after_s: Seconds | None = None
+    """Not before this long after the previous action [s]."""
+    when: str | None = None
+    """A condition on the vehicle's state (see ``deploy.scenario.conditions``)."""
+    speed_kmh: float | None = Field(default=None, ge=0.0, le=360.0, allow_inf_nan=False)
+    end_of_authority_m: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
+    """``issue_ma``: the RBC (REST, admin) issues an MA from the vehicle to this chainage [m]."""
+    timeout_s: Seconds = 3600.0
+    """The run fails if the action has not happened this long after it was armed [s]."""
+
+    @field_validator("when")
+    @classmethod
+    def _condition(cls, when: str | None) -> str | None:
+        if when is not None:
+            parse_condition(when)  # raises ValueError with the reason
+        return when
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Action:
+        if (self.do == "rd_target_speed") != (self.speed_kmh is not None):
+            raise ValueError("speed_kmh goes with rd_target_speed, and only with it")
+        if (self.do == "issue_ma") != (self.end_of_authority_m is not None):
+            raise ValueError("end_of_authority_m goes with issue_ma, and only with it")
+        return self
+
+    @property
+    def condition(self) -> Condition | None:
+        return None if self.when is None else parse_condition(self.when)
+
+
+class _Window(_Model):
+    start_s: Seconds
+    end_s: float = Field(default=float("inf"), gt=0.0)
+
+    @model_validator(mode="after")
+    def _ordered(self) -> _Window:
+        if self.end_s <= self.start_s:
+            raise ValueError("end_s must be after start_s")
+        return self
+
+
+class SensorDropout(_Window):
+    kind: Literal["sensor_dropout"]
+    sensor: Literal["imu", "odometer", "gps"]
+
+
+class OdometerFailure(_Window):
+    kind: Literal["odometer_failure"]
+    mode: Literal["silent", "stuck_zero"] = "silent"
+
+
+class UdpLinkFault(_Window):
+    kind: Literal["udp_link"]
+    loss: float = Field(default=0.0, ge=0.0, le=1.0)
+    reorder: float = Field(default=0.0, ge=0.0, le=1.0)
+    duplicate: float = Field(default=0.0, ge=0.0, le=1.0)
+    corrupt: float = Field(default=0.0, ge=0.0, le=1.0)
+
+
+class ZenohLinkLoss(_Window):
+    kind: Literal["zenoh_link_loss"]
+
+
+class AtoFailure(_Window):
+    kind: Literal["ato_failure"]
+
+
+class VigilanceAbsent(_Window):
+    kind: Literal["vigilance_absent"]
+
+
+class RelayFault(_Window):
+    kind: Literal["relay_fault"]
+
+
+class TachometerFault(_Window):
+    kind: Literal["tachometer"]
+    mode: Literal["frozen", "noisy", "silent"]
+
+
+class FrictionDrop(_Window):
+    kind: Literal["friction_drop"]
+    factor: float = Field(gt=0.0, le=1.0, description="Adhesion multiplied by this")
+
+
+class Obstacle(_Model):
+    kind: Literal["obstacle"]
+    at_s: Seconds
+    position_m: float = Field(ge=0.0, allow_inf_nan=False, description="Chainage [m]")
+
+
+class ShortenedAuthority(_Model):
+    kind: Literal["ma_shortened"]
+    at_s: Seconds
+    end_of_authority_m: float = Field(ge=0.0, allow_inf_nan=False, description="Chainage [m]")
+
+
+class TemporarySpeedRestriction(_Model):
+    kind: Literal["tsr"]
+    at_s: Seconds
+    start_m: float = Field(ge=0.0, allow_inf_nan=False)
+    end_m: float = Field(gt=0.0, allow_inf_nan=False)
+    speed_kmh: float = Field(gt=0.0, le=360.0, allow_inf_nan=False)
+
+
+class TracksideRestart(_Model):
+    kind: Literal["trackside_restart"]
+    at_s: Seconds
+    down_s: float = Field(default=5.0, gt=0.0, le=600.0)
+
+
+Fault = Annotated[
+    SensorDropout
+    | OdometerFailure
+    | UdpLinkFault
+    | ZenohLinkLoss
+    | AtoFailure
+    | VigilanceAbsent
+    | RelayFault
+    | TachometerFault
+    | FrictionDrop
+    | Obstacle
+    | ShortenedAuthority
+    | TemporarySpeedRestriction
+    | TracksideRestart,
+    Field(discriminator="kind"),
+]
+
+
+class Expectation(_Model):
+    """A KPI of ``kpis.json`` compared with a value: ``stops.stop_error_m abs<= 0.5`` holds
+    when it holds for every stop."""
+
+    kpi: str = Field(min_length=1, max_length=80, pattern=r"^[a-z_]+(\.[a-z_0-9]+)*$")
+    op: Literal["<=", "<", ">=", ">", "==", "!=", "abs<="]
+    value: float | bool | str
+    name: str | None = None
+
+
+class VcCatalogueSpec(_Model):
+    """Run one scenario of the Vital Control catalogue (``onboard.vc.catalogue``) instead of the
+    whole stack: the VC with its emulated I/O on the catalogue's scripted train."""
+
+    catalogue: str = Field(min_length=1, max_length=40)
+    replicas: Literal[1, 2] = 1
+
+
+class ScenarioSpec(_Model):
+    """One scenario file."""
+
+    name: str = Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+    title: str = Field(min_length=1, max_length=200)
+    line: str = Field(pattern=r"^[A-Za-z0-9_-]{1,64}$")
+    seed: int = Field(default=0, ge=0, lt=2**32)
+    duration_s: float = Field(gt=0.0, le=100_000.0, description="Simulated time at most [s]")
+    end_when: str | None = None
+    """Stop early when this condition holds (e.g. the end of the journey)."""
+    vehicle: VehicleSpec = VehicleSpec()
+    operator: OperatorSpec = OperatorSpec()
+    journey: JourneySpec | None = None
+    actions: tuple[Action, ...] = ()
+    faults: tuple[Fault, ...] = ()
+    expect: tuple[Expectation, ...] = ()
+    vc: VcCatalogueSpec | None = None
+
+    @field_validator("end_when")
+    @classmethod
+    def _condition(cls, end_when: str | None) -> str | None:
+        if end_when is not None:
+            parse_condition(end_when)
+        return end_when
+
+    @model_validator(mode="after")
+    def _consistent(self) -> ScenarioSpec:
+        if any(a.do == "send_journey" for a in self.actions) and self.journey is None:
+            raise ValueError("a send_journey action needs a [journey]")
+        return self

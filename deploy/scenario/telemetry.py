@@ -1,0 +1,231 @@
+"""What a scenario run records: the truth beside what the vehicle believed and did.
+
+:class:`TelemetryRecorder` is an observer task on the onboard node's executive, after the plant
+(every 10 ms): it keeps running maxima at that rate (overspeed against the MRSP at the true
+position) and samples one row of telemetry every control period (200 ms): time, the truth
+(position, speed, acceleration, applied force), the MRSP, the ADF's reference speed and state,
+the ATO-OB state and ETCS mode, the localisation estimate, the Vital Control's EB, the energy.
+It notes each stop at a journey stopping point (where the ADF, on its estimate, believes it
+stands at one), with the true stopping error. The truth is used
+for KPIs only; nothing onboard reads this recorder.
+
+The columns go to ``telemetry.npz`` (numpy, no pickle) and the plots of the report.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from onboard.node import TASK_TABLE, OnboardNode
+from onboard.runtime.clock import NS_PER_S
+
+__all__ = ["COLUMNS", "StopRecord", "TelemetryRecorder"]
+
+RECORDER_PRIORITY = TASK_TABLE["sfa"].priority - 1
+"""Right after the plant and the localisation: the truth and the estimate of this tick."""
+SAMPLE_S = TASK_TABLE["control"].period_s
+STANDSTILL_MPS = 0.01
+
+COLUMNS = (
+    "time_s", "position_m", "speed_mps", "acceleration_mps2", "force_n", "force_demand_n",
+    "mrsp_mps", "reference_speed_mps", "permitted_speed_mps", "estimated_position_m",
+    "sc_state", "ato_state", "etcs_mode", "vc_eb", "soc", "range_extender_kw",
+    "traction_energy_j",
+)  # fmt: skip
+"""The telemetry's columns: floats but the three states (their names as strings)."""
+
+
+@dataclass(frozen=True)
+class StopRecord:
+    name: str
+    planned_arrival_s: float
+    arrival_s: float
+    """Journey time of the stop [s]."""
+    stop_error_m: float
+    """True front position − stopping point, along the journey [m]."""
+
+
+@dataclass
+class _Maxima:
+    overspeed_mps: float = -math.inf
+    vc_eb_count: int = 0
+    """Emergency brakes commanded by the Vital Control (rising edges of its valves' state)."""
+    eoa_margin_m: float = math.inf
+    """Least distance from the true front end to the ETCS end of authority [m] (< 0: passed)."""
+    obstacle_margin_m: float = math.inf
+    """Least distance from the true front end to the obstacle [m] (< 0: reached)."""
+
+
+@dataclass
+class _Intervention:
+    cause: str
+    command_s: float
+    hazard_s: float | None
+    full_s: float | None = None
+
+    def as_kpi(self) -> dict[str, Any]:
+        def ms(end_s: float | None) -> float | None:
+            if end_s is None or self.hazard_s is None:
+                return None
+            return round((end_s - self.hazard_s) * 1000.0, 3)
+
+        return {"cause": self.cause, "hazard_to_eb_command_ms": ms(self.command_s),
+                "total_to_full_eb_ms": ms(self.full_s)}  # fmt: skip
+
+
+@dataclass
+class TelemetryRecorder:
+    """Samples a node's truth and estimates; register it once on the node's executive."""
+
+    node: OnboardNode
+    rows: dict[str, list[float | str]] = field(default_factory=lambda: {c: [] for c in COLUMNS})
+    stops: list[StopRecord] = field(default_factory=list)
+    maxima: _Maxima = field(default_factory=_Maxima)
+    obstacle_m: float | None = None
+    """An obstacle's position in the plant's coordinate (unwrapped), once there is one [m]."""
+    sensor_lost_s: dict[str, float] = field(default_factory=dict)
+    """When the localisation first reported each sensor (imu, odometer, gps) not alive [s]."""
+    hazards_s: list[float] = field(default_factory=list)
+    """When injected hazards began [s] (the runner notes them): an EB is timed from the last."""
+    interventions: list[_Intervention] = field(default_factory=list)
+    _next_sample_ns: int = 0
+    _stopped_at: str | None = None
+    _eb: bool = False
+
+    def register(self) -> None:
+        vital = self.node.stack.vital
+        self._eb = vital is not None and vital.eb_commanded  # powered up braked: no intervention
+        self.node.executive.add_task(
+            "telemetry", self._step, period_s=TASK_TABLE["plant"].period_s,
+            priority=RECORDER_PRIORITY,
+        )  # fmt: skip
+
+    def _step(self, now_ns: int) -> None:
+        node = self.node
+        plant, track_map = node.plant, node.track_map
+        chainage = track_map.normalise(plant.position_m)
+        overspeed = plant.speed_mps - track_map.mrsp_mps(chainage)
+        maxima = self.maxima
+        maxima.overspeed_mps = max(maxima.overspeed_mps, overspeed)
+        etcs = node.stack.etcs.output
+        if etcs is not None and etcs.end_of_authority_distance_m is not None:
+            eoa_m = etcs.odometry.estimated_front_m + etcs.end_of_authority_distance_m
+            maxima.eoa_margin_m = min(maxima.eoa_margin_m, eoa_m - plant.position_m)
+        if self.obstacle_m is not None:
+            maxima.obstacle_margin_m = min(maxima.obstacle_margin_m,
+                                           self.obstacle_m - plant.position_m)  # fmt: skip
+        self._note_stop(now_ns)
+        self._note_emergency_brake(now_ns / NS_PER_S)
+        self._note_sensors(now_ns / NS_PER_S)
+        if now_ns >= self._next_sample_ns:
+            self._next_sample_ns = now_ns + round(SAMPLE_S * NS_PER_S)
+            self._sample(now_ns)
+
+    def _note_sensors(self, now_s: float) -> None:
+        chain = self.node.sensor_fusion
+        estimate = None if chain is None else chain.estimate
+        if estimate is None:
+            return
+        for name, alive in (("imu", estimate.imu_alive), ("odometer", estimate.odometer_alive),
+                            ("gps", estimate.gps_alive)):  # fmt: skip
+            if alive is False and name not in self.sensor_lost_s:
+                self.sensor_lost_s[name] = now_s
+
+    def _note_emergency_brake(self, now_s: float) -> None:
+        vital = self.node.stack.vital
+        if vital is None:
+            return
+        eb = vital.eb_commanded
+        if eb and not self._eb:
+            self.maxima.vc_eb_count += 1
+            status = self.node.stack.vital_status()
+            conditions = () if status is None else status.eb_conditions
+            cause = ",".join(f"eb{c}" for c in conditions) or (
+                "operator" if status is not None and not status.system_decay else "vc"
+            )
+            hazard = max((h for h in self.hazards_s if h <= now_s), default=None)
+            self.interventions.append(_Intervention(cause, now_s, hazard))
+        self._eb = eb
+        last = self.interventions[-1] if self.interventions else None
+        if last is not None and last.full_s is None and vital.emergency_brake(now_s) >= 1.0:
+            last.full_s = now_s
+
+    @property
+    def vc_interventions(self) -> list[dict[str, Any]]:
+        """``kpis.json``'s ``vc_interventions``: hazard → EB command, hazard → full EB."""
+        return [item.as_kpi() for item in self.interventions]
+
+    def _note_stop(self, now_ns: int) -> None:
+        node = self.node
+        driving = node.stack.driving
+        if driving.journey is None or node.plant.speed_mps > STANDSTILL_MPS:
+            self._stopped_at = None
+            return
+        # The stop the ADF believes it stands at (on its estimate); its error is the truth's.
+        stop = driving.stopped_at(node.stack.position_m, node.stack.speed_mps)
+        if stop is None or stop.timing_point_id == self._stopped_at:
+            return
+        self._stopped_at = stop.timing_point_id
+        if any(record.name == stop.timing_point_id for record in self.stops):
+            return
+        travelled = node.plant.position_m - driving._origin_m
+        self.stops.append(
+            StopRecord(
+                name=stop.timing_point_id, planned_arrival_s=stop.arrival_s,
+                arrival_s=driving.journey_time_s(now_ns / NS_PER_S),
+                stop_error_m=travelled - stop.distance_m,
+            )
+        )  # fmt: skip
+
+    def _sample(self, now_ns: int) -> None:
+        node = self.node
+        now_s = now_ns / NS_PER_S
+        plant, stack = node.plant, node.stack
+        chainage = node.track_map.normalise(plant.position_m)
+        etcs = stack.etcs.output
+        powertrain = getattr(plant, "powertrain", None)
+        soc = getattr(powertrain, "soc", math.nan)
+        extender = getattr(powertrain, "range_extender", None)
+        extender_kw = math.nan if extender is None else extender.power_w / 1000.0
+        values: dict[str, float | str] = {
+            "time_s": now_s,
+            "position_m": plant.position_m,
+            "speed_mps": plant.speed_mps,
+            "acceleration_mps2": plant.acceleration_mps2,
+            "force_n": plant.applied_force_n,
+            "force_demand_n": stack.force_demand_n,
+            "mrsp_mps": node.track_map.mrsp_mps(chainage),
+            "reference_speed_mps": _nan_if_none(stack.driving.reference_speed_mps(now_s)),
+            "permitted_speed_mps": math.nan if etcs is None else etcs.permitted_speed_mps,
+            "estimated_position_m": stack.position_m,
+            "sc_state": stack.driving.state.value,
+            "ato_state": stack.ato_state.value,
+            "etcs_mode": stack.etcs.mode.value,
+            "vc_eb": float(stack.vital is not None and stack.vital.eb_commanded),
+            "soc": float(soc),
+            "range_extender_kw": extender_kw,
+            "traction_energy_j": plant.traction_energy_j,
+        }
+        for column in COLUMNS:
+            self.rows[column].append(values[column])
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The columns as arrays: floats, or strings for the states."""
+        return {
+            column: np.asarray(values, dtype=str if column.endswith(("_state", "_mode")) else float)
+            for column, values in self.rows.items()
+        }
+
+    def save(self, path: Path) -> None:
+        """``telemetry.npz``: one array per column (``numpy.load(path)`` reads it)."""
+        arrays: dict[str, Any] = dict(self.arrays())
+        np.savez_compressed(path, **arrays)
+
+
+def _nan_if_none(value: float | None) -> float:
+    return math.nan if value is None else value

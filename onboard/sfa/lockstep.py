@@ -1,0 +1,166 @@
+"""The sensor-fusion chain in lockstep, without sockets: plant → interface-modules → link →
+listener → Localisation → ACKs, every 10 ms of simulated time, deterministic for a seed.
+
+Each tick: the plant steps; the interface-modules send that tick's datagrams into the
+:class:`~onboard.sfa.link.FaultyLink`; what the link delivers by the tick is fed to the
+:class:`~onboard.sfa.listener.ListenerCore` at its delivery time; the listener's OUTPUT
+datagrams go to the :class:`~onboard.sfa.localisation.Localisation`, whose ACKs come back to the
+listener. The estimate at each tick is compared with the truth at that tick.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from onboard.plant.sensors import InterfaceModules, SensorFaults, SensorNoise, TimeWindow
+from onboard.sfa.drive import SpeedProfileDrive
+from onboard.sfa.link import FaultyLink, LinkFaults
+from onboard.sfa.listener import Health, ListenerConfig, ListenerCore
+from onboard.sfa.localisation import Localisation
+from onboard.sfa.recording import Recording
+from trackdb import TrackMap, load_seed_line
+
+__all__ = ["DriveResult", "DriveSettings", "ErrorStats", "run_lockstep"]
+
+FloatArray = npt.NDArray[np.float64]
+MPS_TO_KMH = 3.6
+
+
+@dataclass(frozen=True, kw_only=True)
+class DriveSettings:
+    """One emulated drive: the line, how it is driven, the sensors and the faults."""
+
+    line_id: str = "bologna-ring"
+    duration_s: float = 600.0
+    cruise_kmh: float = 80.0
+    start_m: float = 0.0
+    seed: int = 0
+    noise: SensorNoise = field(default_factory=SensorNoise)
+    sensor_faults: SensorFaults = field(default_factory=SensorFaults)
+    link_faults: LinkFaults = field(default_factory=LinkFaults)
+    listener: ListenerConfig = field(default_factory=ListenerConfig)
+    record: bool = False
+
+
+@dataclass(frozen=True)
+class ErrorStats:
+    """Along-track position [m] and speed [km/h] errors over a set of instants."""
+
+    samples: int
+    position_rms_m: float
+    position_max_m: float
+    speed_rms_kmh: float
+
+    @classmethod
+    def of(cls, position_errors_m: FloatArray, speed_errors_mps: FloatArray) -> ErrorStats:
+        if position_errors_m.size == 0:
+            return cls(0, float("nan"), float("nan"), float("nan"))
+        return cls(
+            samples=int(position_errors_m.size),
+            position_rms_m=float(np.sqrt(np.mean(position_errors_m**2))),
+            position_max_m=float(np.max(np.abs(position_errors_m))),
+            speed_rms_kmh=float(np.sqrt(np.mean(speed_errors_mps**2)) * MPS_TO_KMH),
+        )
+
+
+@dataclass
+class DriveResult:
+    """Per-tick errors of a lockstep drive and what every part counted."""
+
+    settings: DriveSettings
+    times_s: FloatArray
+    position_errors_m: FloatArray
+    speed_errors_mps: FloatArray
+    odometer_alive: npt.NDArray[np.bool_]
+    lost: npt.NDArray[np.bool_]
+    """Whether the Localisation's health was lost at each tick."""
+    listener: ListenerCore
+    localisation: Localisation
+    link: FaultyLink
+    recording: Recording | None
+
+    def stats(self, window: TimeWindow | None = None) -> ErrorStats:
+        """Error statistics over the whole drive, or over a window of it."""
+        if window is None:
+            mask = np.ones(self.times_s.shape, dtype=bool)
+        else:
+            mask = (self.times_s >= window.start_s) & (self.times_s < window.end_s)
+        return ErrorStats.of(self.position_errors_m[mask], self.speed_errors_mps[mask])
+
+    def detection_delay_s(self, failure_s: float) -> float | None:
+        """Time [s] from a sensor failure at ``failure_s`` until the odometer is reported
+        failed; None if it never is."""
+        after = (self.times_s >= failure_s) & ~self.odometer_alive
+        if not after.any():
+            return None
+        return float(self.times_s[np.argmax(after)] - failure_s)
+
+
+def run_lockstep(settings: DriveSettings, track_map: TrackMap | None = None) -> DriveResult:
+    """Drive, emulate, fuse and compare, tick by tick (10 ms)."""
+    track_map = track_map or TrackMap(load_seed_line(settings.line_id))
+    rng = np.random.default_rng(settings.seed)
+    drive = SpeedProfileDrive(track_map, start_m=settings.start_m, cruise_kmh=settings.cruise_kmh)
+    modules = InterfaceModules(
+        track_map, rng=rng, noise=settings.noise, faults=settings.sensor_faults
+    )
+    link = FaultyLink(settings.link_faults, rng)
+    listener = ListenerCore(track_map, settings.listener)
+    localisation = Localisation(track_map, listener=listener)
+    recording = Recording.empty(settings.line_id) if settings.record else None
+
+    def deliver(now_s: float) -> None:
+        for datagram, arrival_s in link.deliver(now_s):
+            if recording is not None:
+                recording.add_datagram(datagram, arrival_s)
+            for output in listener.feed(datagram, arrival_s):
+                localisation.receive(output, arrival_s)
+
+    ticks = round(settings.duration_s / drive.dt_s) + 1
+    times, position_errors, speed_errors = np.zeros(ticks), np.zeros(ticks), np.zeros(ticks)
+    odometer_alive = np.ones(ticks, dtype=bool)
+    lost = np.zeros(ticks, dtype=bool)
+    count = 0
+    truths = drive.run(settings.duration_s)
+    first = next(truths)
+    for datagram in modules.start(first):
+        link.send(datagram, first.time_s)
+    for truth in itertools.chain([first], truths):
+        now_s = truth.time_s
+        for datagram in modules.step(truth):
+            link.send(datagram, now_s)
+        deliver(now_s)
+        for output in listener.poll(now_s):
+            localisation.receive(output, now_s)
+        for ack in localisation.step(now_s):
+            listener.on_ack(ack, now_s)
+        if recording is not None:
+            recording.add_truth(truth)
+        estimate = localisation.estimate
+        if estimate is None:
+            continue
+        times[count] = now_s
+        position_errors[count] = estimate.position_m - truth.position_m
+        speed_errors[count] = estimate.speed_mps - truth.speed_mps
+        odometer_alive[count] = bool(estimate.odometer_alive)
+        lost[count] = estimate.health is Health.LOST
+        count += 1
+    for datagram in modules.stop():
+        link.send(datagram, drive.time_s)
+    deliver(float("inf"))
+    return DriveResult(
+        settings=settings,
+        times_s=times[:count],
+        position_errors_m=position_errors[:count],
+        speed_errors_mps=speed_errors[:count],
+        odometer_alive=odometer_alive[:count],
+        lost=lost[:count],
+        listener=listener,
+        localisation=localisation,
+        link=link,
+        recording=recording,
+    )

@@ -1,0 +1,108 @@
+"""The listener's reorder buffer: INPUT_PROTOCOL packets released in SEQ_NO order (seed 002 §3.2.1).
+
+SEQ_NO is a uint16 that wraps, so order is modular: a packet is *ahead* of the next expected
+number when its distance ``(seq − next) mod 65536`` is under half the range, *behind* otherwise.
+A packet behind is dropped: a ``duplicate`` if it was released recently (or is already waiting),
+``late`` otherwise. A packet ahead waits until the gap before it fills, or until the buffer holds
+more than ``depth`` packets, or until the oldest waiting packet has waited ``max_wait_s``: the
+gap is then declared lost (counted) and release resumes at the next number held.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import Generic, TypeVar
+
+from protocol.udp import SEQ_MODULO
+
+__all__ = ["ReorderBuffer"]
+
+T = TypeVar("T")
+_HALF = SEQ_MODULO // 2
+
+
+class ReorderBuffer(Generic[T]):
+    """Holds items keyed by SEQ_NO and gives them back in order.
+
+    Parameters
+    ----------
+    depth : int
+        Packets held before a gap is given up.
+    max_wait_s : float
+        Longest a packet waits for the gap before it [s of arrival time].
+    """
+
+    def __init__(self, *, depth: int = 16, max_wait_s: float = 0.05) -> None:
+        if depth < 1 or max_wait_s < 0:
+            raise ValueError("depth must be ≥ 1 and max_wait_s ≥ 0")
+        self.depth = depth
+        self.max_wait_s = max_wait_s
+        self.next_seq: int | None = None
+        self.lost = 0
+        """Sequence numbers declared lost when a gap was given up."""
+        self._waiting: dict[int, tuple[T, float]] = {}
+        self._recent: deque[int] = deque(maxlen=256)
+        self._recent_set: set[int] = set()
+
+    def __len__(self) -> int:
+        return len(self._waiting)
+
+    def reset(self, next_seq: int | None = None) -> list[T]:
+        """Forget the order (a sender restart); returns what was waiting, in order."""
+        flushed = self.flush()
+        self.next_seq = next_seq
+        self._recent.clear()
+        self._recent_set.clear()
+        return flushed
+
+    def distance(self, seq_no: int) -> int:
+        """Modular distance of ``seq_no`` ahead of the next expected number (negative: behind)."""
+        if self.next_seq is None:
+            return 0
+        delta = (seq_no - self.next_seq) % SEQ_MODULO
+        return delta if delta < _HALF else delta - SEQ_MODULO
+
+    def push(self, seq_no: int, item: T, arrival_s: float) -> str | None:
+        """Offer an item; returns ``"duplicate"`` or ``"late"`` when it is dropped, else None."""
+        if self.next_seq is None:
+            self.next_seq = seq_no
+        delta = (seq_no - self.next_seq) % SEQ_MODULO
+        if delta >= _HALF:
+            return "duplicate" if seq_no in self._recent_set else "late"
+        if seq_no in self._waiting:
+            return "duplicate"
+        self._waiting[seq_no] = (item, arrival_s)
+        return None
+
+    def _mark_released(self, seq_no: int) -> None:
+        if len(self._recent) == self._recent.maxlen:
+            self._recent_set.discard(self._recent[0])
+        self._recent.append(seq_no)
+        self._recent_set.add(seq_no)
+
+    def pop_ready(self, now_s: float) -> list[T]:
+        """Release every item now due, in order, giving up gaps as the rules say."""
+        released: list[T] = []
+        waiting = self._waiting
+        while waiting and self.next_seq is not None:
+            seq_no = self.next_seq
+            entry = waiting.pop(seq_no, None)
+            if entry is None:
+                oldest_s = min(arrival for _, arrival in waiting.values())
+                if len(waiting) <= self.depth and now_s - oldest_s < self.max_wait_s:
+                    break
+                skip = min((key - seq_no) % SEQ_MODULO for key in waiting)
+                self.lost += skip
+                self.next_seq = (seq_no + skip) % SEQ_MODULO
+                continue
+            released.append(entry[0])
+            self._mark_released(seq_no)
+            self.next_seq = (seq_no + 1) % SEQ_MODULO
+        return released
+
+    def flush(self) -> list[T]:
+        """Release everything waiting, in order, declaring every gap lost."""
+        released: list[T] = []
+        while self._waiting and self.next_seq is not None:
+            released.extend(self.pop_ready(float("inf")))
+        return released

@@ -1,0 +1,24 @@
+"""The whole-stack fault scenarios of the library: each run by `ato run`'s runner in lockstep,
+each meeting its expectations (safe outcomes: no overspeed, EoA and obstacle never reached)."""
+
+from __future__ import annotations
+
+import pytest
+
+from deploy.scenario import load_scenario
+from deploy.scenario.runner import RunOptions, run_scenario
+
+pytestmark = pytest.mark.e2e
+
+FAULT_SCENARIOS = ("ma-shortened", "obstacle", "vigilance-absent", "ato-failure",
+                   "trackside-restart", "gps-outage", "odometer-failure", "udp-loss")  # fmt: skip
+
+
+@pytest.mark.parametrize("name", FAULT_SCENARIOS)
+def test_fault_scenario_meets_its_expectations(name: str) -> None:
+    kpis = run_scenario(load_scenario(name), RunOptions(fast=True)).kpis
+    failed = [item for item in kpis["expectations"] if not item["ok"]]
+    assert not failed, failed
+    assert kpis["max_overspeed_kmh"] <= 0.0
+    if kpis["min_eoa_margin_m"] is not None:
+        assert kpis["min_eoa_margin_m"] >= 0.0

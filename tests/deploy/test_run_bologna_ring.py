@@ -1,0 +1,46 @@
+"""`ato run bologna-ring --fast` end to end: trackside, onboard and operator in one process on
+real Zenoh sessions, lockstep; the seed 000 field test's KPIs, and determinism."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from deploy.scenario import load_scenario
+from deploy.scenario.runner import RunOptions, run_scenario
+
+pytestmark = pytest.mark.e2e
+
+WALL_CLOCK = ("wall_time_s", "real_time_factor", "nmpc_ms")
+"""Fields that measure the machine, not the run."""
+
+
+def _run(report: Path) -> dict[str, Any]:
+    outcome = run_scenario(load_scenario("bologna-ring"), RunOptions(fast=True, report_dir=report))
+    kpis: dict[str, Any] = json.loads((report / "kpis.json").read_text())
+    assert kpis["passed"] is outcome.passed
+    return kpis
+
+
+def test_bologna_ring_meets_the_field_test_kpis_and_repeats_exactly(tmp_path: Path) -> None:
+    first = _run(tmp_path / "first")
+    assert first["passed"], [e for e in first["expectations"] if not e["ok"]]
+    assert [stop["name"] for stop in first["stops"]] == ["east", "south", "north"]
+    for stop in first["stops"]:
+        assert abs(stop["stop_error_m"]) <= 0.5 and abs(stop["arrival_error_s"]) <= 2.0
+    assert first["max_overspeed_kmh"] <= 0.0
+    assert first["etcs_sb_count"] == first["etcs_eb_count"] == first["vc_eb_count"] == 0
+    assert first["position_error_m"]["rms"] <= 1.0
+    assert first["real_time_factor"] > 0.0
+    telemetry = np.load(tmp_path / "first" / "telemetry.npz")
+    assert telemetry["speed_mps"].max() == pytest.approx(40 / 3.6, abs=0.5)
+    assert "<img" in (tmp_path / "first" / "report.html").read_text()
+
+    second = _run(tmp_path / "second")
+    for key in WALL_CLOCK:
+        first.pop(key), second.pop(key)
+    assert first == second

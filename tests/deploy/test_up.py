@@ -1,0 +1,177 @@
+"""`ato up --vehicles 2`: router, trackside and two onboard processes; liveliness when an onboard
+is killed or frozen; a clean shutdown that leaves no process behind."""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tests.conftest import wait_for
+
+pytestmark = pytest.mark.e2e
+
+KILLED_NOT_ALIVE_S = 1.0
+FROZEN_NOT_ALIVE_S = 1.5
+"""CONTRACT: a killed onboard is not alive within 1 s; a frozen one (SIGSTOP) within 1.5 s."""
+
+
+class Up:
+    def __init__(self, process: subprocess.Popen[str], lines: list[str]) -> None:
+        self.process = process
+        text = "\n".join(lines)
+        found = re.search(r"console (\S+)/ \(login (\S+) / (\S+)\)", text)
+        assert found, text
+        self.url, user, password = found.groups()
+        self.pids = {name: int(pid) for name, pid in re.findall(r"^\s+(\S+)\s+pid (\d+)", text,
+                                                                   re.MULTILINE)}  # fmt: skip
+        token = httpx.post(
+            f"{self.url}/api/v1/auth/token", data={"username": user, "password": password}
+        ).json()["access_token"]
+        self.headers = {"Authorization": f"Bearer {token}"}
+
+    def alive(self) -> dict[str, bool]:
+        vehicles = httpx.get(f"{self.url}/api/v1/vehicles", headers=self.headers).json()
+        return {item["id"]: item["alive"] for item in vehicles}
+
+
+def _start(tmp_path: Path, *options: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "deploy", "up", "--vehicles", "2", "--port", "0",
+         "--router-port", "0", "--data-dir", str(tmp_path), *options],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+
+
+@contextmanager
+def _running(process: subprocess.Popen[str]) -> Iterator[Up]:
+    assert process.stdout is not None
+    lines: list[str] = []
+    for line in process.stdout:
+        lines.append(line.rstrip())
+        if line.startswith("  onboard-URV2"):
+            break
+        if "failed" in line:
+            pytest.fail("\n".join(lines))
+    try:
+        yield Up(process, lines)
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        process.stdout.close()
+
+
+@pytest.fixture
+def up(tmp_path: Path) -> Iterator[Up]:
+    with _running(_start(tmp_path, "--speed", "5")) as fleet:
+        yield fleet
+
+
+def _time_until_not_alive(up: Up, vehicle: str, limit_s: float = 10.0) -> float:
+    start = time.monotonic()
+    while up.alive().get(vehicle, True):
+        assert time.monotonic() - start < limit_s
+        time.sleep(0.02)
+    return time.monotonic() - start
+
+
+def _running_pid(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def test_two_vehicles_come_up_die_freeze_and_shut_down_cleanly(up: Up) -> None:
+    assert set(up.pids) == {"router", "trackside", "onboard-URV1", "onboard-URV2"}
+    assert up.alive() == {"URV1": True, "URV2": True}
+
+    os.kill(up.pids["onboard-URV2"], signal.SIGKILL)
+    killed_s = _time_until_not_alive(up, "URV2")
+    os.kill(up.pids["onboard-URV1"], signal.SIGSTOP)
+    try:
+        frozen_s = _time_until_not_alive(up, "URV1")
+    finally:
+        os.kill(up.pids["onboard-URV1"], signal.SIGCONT)
+    assert killed_s <= KILLED_NOT_ALIVE_S, f"killed → not alive after {killed_s:.3f} s"
+    assert frozen_s <= FROZEN_NOT_ALIVE_S, f"frozen → not alive after {frozen_s:.3f} s"
+    assert wait_for(lambda: up.alive()["URV1"], 10.0)  # thawed: back
+
+    up.process.send_signal(signal.SIGTERM)
+    assert up.process.wait(30.0) == 0
+    assert not [name for name, pid in up.pids.items() if _running_pid(pid)]
+
+
+JOURNEY_WALL_S = 240.0
+"""How long, in wall time, the two vehicles may take to drive their journeys at ×10."""
+
+
+def _status(up: Up, vehicle: str) -> dict[str, object]:
+    reply = httpx.get(f"{up.url}/api/v1/vehicles/{vehicle}", headers=up.headers).json()
+    return dict(reply["status"] or {})
+
+
+def _command(up: Up, vehicle: str, route: str, body: dict[str, object] | None = None) -> None:
+    answer = httpx.post(f"{up.url}/api/v1/vehicles/{vehicle}/{route}", json=body or {},
+                        headers=up.headers, timeout=10.0)  # fmt: skip
+    assert answer.status_code == 200 and answer.json()["accepted"], answer.text
+
+
+def _until(up: Up, vehicle: str, check: object, what: str) -> dict[str, object]:
+    deadline = time.monotonic() + JOURNEY_WALL_S
+    while time.monotonic() < deadline:
+        status = _status(up, vehicle)
+        if status and check(status):  # type: ignore[operator]
+            return status
+        time.sleep(0.1)
+    pytest.fail(f"{vehicle}: {what} not reached; last status {_status(up, vehicle)}")
+
+
+def test_both_vehicles_are_driven_through_a_journey_over_rest(tmp_path: Path) -> None:
+    with _running(_start(tmp_path, "--speed", "10", "--simulated-operators")) as up:
+        vehicles = ("URV1", "URV2")
+        for vehicle in vehicles:
+            answer = httpx.post(f"{up.url}/api/v1/vehicles/{vehicle}/select", headers=up.headers)
+            assert answer.status_code == 200, answer.text
+            _until(up, vehicle, lambda s: not s["vital_control"]["eb_commanded"], "EB rearmed")
+            _command(up, vehicle, "rd-target-speed", {"target_speed_kmh": 30.0})
+        for vehicle in vehicles:
+            _until(up, vehicle, lambda s: s["etcs_mode"] == "FS", "FS at the balise group")
+            _command(up, vehicle, "rd-target-speed", {"target_speed_kmh": 0.0})
+        for vehicle in vehicles:
+            stopped = _until(up, vehicle, lambda s: s["speed_mps"] == 0.0, "standstill")
+            journey = {
+                "id": f"east-{vehicle.lower()}", "line_id": "bologna-ring",
+                "start_position_m": stopped["position_m"], "max_speed_mps": 40 / 3.6,
+                "timing_points": [{"id": "east", "stopping_point_id": "east",
+                                   "arrival_time_s": 300.0, "end_of_journey": True}],
+            }  # fmt: skip
+            stored = httpx.post(f"{up.url}/api/v1/journeys", json=journey, headers=up.headers)
+            assert stored.status_code == 201, stored.text
+            sent = httpx.post(f"{up.url}/api/v1/vehicles/{vehicle}/journey-profile",
+                              json={"journey_id": journey["id"]}, headers=up.headers,
+                              timeout=10.0)  # fmt: skip
+            assert sent.status_code == 200 and sent.json()["accepted"], sent.text
+        for vehicle in vehicles:
+            _until(up, vehicle, lambda s: s["ato_state"] == "RE", "ready")
+            _command(up, vehicle, "engage")
+        for vehicle in vehicles:
+            _until(up, vehicle, lambda s: s["ato_state"] == "EG", "engaged")
+        for vehicle in vehicles:
+            end = _until(up, vehicle, lambda s: s["ato_state"] == "NA" and s["speed_mps"] == 0.0,
+                         "end of journey")  # fmt: skip
+            assert abs(float(end["position_m"]) - 1975.0) <= 1.0  # type: ignore[arg-type]
+        up.process.send_signal(signal.SIGTERM)
+        assert up.process.wait(30.0) == 0
+        assert not [name for name, pid in up.pids.items() if _running_pid(pid)]

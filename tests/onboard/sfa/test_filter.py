@@ -1,0 +1,93 @@
+"""The along-track Kalman filter: prediction equal to filterpy's, gating, IMU-only growth,
+balise fixes, ring unwrapping."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from filterpy.kalman import KalmanFilter
+from numpy.testing import assert_allclose
+
+from onboard.sfa import FilterConfig, NotInitialisedError, TrackKalmanFilter
+from onboard.sfa.filter import transition_matrices
+from trackdb import TrackMap, load_seed_line
+
+
+@pytest.fixture(scope="module")
+def ring() -> TrackMap:
+    return TrackMap(load_seed_line("bologna-ring"))
+
+
+def test_fast_prediction_equals_filterpys(ring: TrackMap) -> None:
+    fast = TrackKalmanFilter(ring)
+    fast.initialise(100.0, 12.0, 0.0)
+    fast.kf.x[2, 0] = 0.03
+    reference = KalmanFilter(dim_x=3, dim_z=1)
+    reference.x = fast.kf.x.copy()
+    reference.P = fast.kf.P.copy()
+    rng = np.random.default_rng(4)
+    for dt_s in rng.uniform(0.005, 0.05, size=200):
+        u = float(rng.normal(0.0, 0.5))
+        transition, control, process = transition_matrices(float(dt_s), fast.config)
+        reference.predict(u=np.array([[u]]), B=control, F=transition, Q=process)
+        fast.predict(float(dt_s), u)
+    assert_allclose(fast.kf.x, reference.x, rtol=1e-12, atol=1e-9)
+    assert_allclose(fast.kf.P, reference.P, rtol=1e-10, atol=1e-12)
+
+
+def test_estimate_before_ground_truth_raises(ring: TrackMap) -> None:
+    with pytest.raises(NotInitialisedError):
+        _ = TrackKalmanFilter(ring).chainage_m
+
+
+def test_odometer_outlier_is_gated_and_a_consistent_one_accepted(ring: TrackMap) -> None:
+    flt = TrackKalmanFilter(ring)
+    flt.initialise(0.0, 10.0, 0.0)
+    assert flt.odometer(0.05, 10.02, 0.05)
+    assert not flt.odometer(0.10, 30.0, 0.05)
+    assert flt.rejected["odometer"] == 1 and flt.accepted["odometer"] == 1
+    assert flt.speed_mps == pytest.approx(10.0, abs=0.05)
+
+
+def test_imu_alone_lets_sigma_grow_and_a_balise_fix_shrinks_it(ring: TrackMap) -> None:
+    flt = TrackKalmanFilter(ring)
+    flt.initialise(0.0, 10.0, 0.0)
+    level_at_rest = 9.81 * float(np.sin(np.arctan(2.0 / 1000.0)))  # the first straight: 2 ‰
+    for tick in range(1, 1001):
+        flt.imu(tick * 0.01, level_at_rest)
+    assert flt.chainage_m == pytest.approx(100.0, abs=1e-6)
+    grown = flt.position_sigma_m
+    assert grown > 5.0
+    flt.fix(100.5, 0.5, 10.0)
+    assert flt.position_sigma_m < 0.5
+    assert flt.chainage_m == pytest.approx(100.5, abs=0.1)
+
+
+def test_gravity_of_the_gradient_is_taken_out_of_the_forward_specific_force(
+    ring: TrackMap,
+) -> None:
+    flt = TrackKalmanFilter(ring)
+    flt.initialise(100.0, 0.0, 0.0)  # on the first straight, 2 ‰ uphill
+    at_rest_uphill = 9.81 * np.sin(np.arctan(2.0 / 1000.0))
+    assert flt.forward_specific_force_to_input(float(at_rest_uphill)) == pytest.approx(
+        0.0, abs=1e-12
+    )
+
+
+def test_gps_and_fixes_unwrap_to_the_lap_of_the_estimate(ring: TrackMap) -> None:
+    flt = TrackKalmanFilter(ring, FilterConfig(gps_sigma_m=2.0))
+    lap = ring.length_m
+    flt.initialise(lap + 5.0, 10.0, 0.0)  # second lap, 5 m past the origin
+    assert flt.unwrap_near_estimate(lap - 3.0) == pytest.approx(lap - 3.0)
+    latitude, longitude, _ = ring.geodetic_at(6.0)
+    assert flt.gps(0.0, latitude, longitude)
+    # σ 1 m against the fix's 2 m: a fifth of the way to it, on the second lap.
+    assert flt.chainage_m == pytest.approx(lap + 5.2, abs=0.05)
+
+
+def test_gps_fix_far_off_the_track_is_rejected(ring: TrackMap) -> None:
+    flt = TrackKalmanFilter(ring)
+    flt.initialise(0.0, 10.0, 0.0)
+    latitude, longitude, _ = ring.geodetic_at(0.0)
+    assert not flt.gps(0.0, latitude + 0.01, longitude)
+    assert flt.rejected["gps"] == 1

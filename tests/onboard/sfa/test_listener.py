@@ -1,0 +1,193 @@
+"""The listener core: validation counted by reason, epochs from STROBE, reordering, ACK link,
+STOP, and fuzzing with every datagram accounted for."""
+
+from __future__ import annotations
+
+import socket
+import struct
+import threading
+
+import numpy as np
+import pytest
+
+from deploy.bench_sfa import fuzz_datagrams, fuzz_listener
+from onboard.sfa import Health, ListenerConfig, ListenerCore
+from onboard.sfa.runner import ListenerRunner
+from protocol.udp import InputPacket, SensorType, decode_output, encode_ack, encode_input
+from tests.conftest import wait_for
+from trackdb import TrackMap, load_seed_line
+
+IMU_LEVEL = (0.0, 0.0, -9.81, 0.0, 0.0, 0.0)
+
+
+@pytest.fixture(scope="module")
+def ring() -> TrackMap:
+    return TrackMap(load_seed_line("bologna-ring"))
+
+
+def packet(sensor_type: SensorType, seq: int, *doubles: float) -> bytes:
+    return encode_input(InputPacket(sensor_type, seq % 65536, tuple(doubles)))
+
+
+def test_malformed_datagrams_are_dropped_and_counted_by_reason(ring: TrackMap) -> None:
+    core = ListenerCore(ring)
+    good = packet(SensorType.IMU, 0, *IMU_LEVEL)
+    nan = bytearray(good)
+    nan[5:13] = struct.pack("<d", float("nan"))
+    bad = [
+        b"\x01\x00",  # truncated
+        good[:-1],  # length mismatch
+        bytes([7, 0, 0, 0, 0]),  # unknown type
+        bytes([1, 0, 0, 0, 1]) + struct.pack("<d", 1.0),  # IMU with one double
+        bytes(nan),  # non-finite
+        packet(SensorType.IMU, 1, 500.0, 0, 0, 0, 0, 0),  # implausible
+    ]
+    for datagram in bad:
+        assert core.feed(datagram, 0.0) == []
+    assert dict(core.counters.dropped) == {
+        "truncated": 1, "length_mismatch": 1, "unknown_type": 1, "count_mismatch": 1,
+        "non_finite": 1, "invalid_value": 1,
+    }  # fmt: skip
+    assert core.counters.accounted(len(core.buffer)) == core.counters.received == 6
+
+
+def test_sensor_packets_before_ground_truth_are_ignored_then_it_initialises(
+    ring: TrackMap,
+) -> None:
+    core = ListenerCore(ring)
+    core.feed(packet(SensorType.IMU, 0, *IMU_LEVEL), 0.0)
+    assert core.counters.before_ground_truth == 1 and core.status is None
+    outputs = core.feed(packet(SensorType.GROUND_TRUTH, 1, 5.0, 0.0, 0.0, 1.5), 0.0)
+    assert core.status is not None
+    assert core.status.chainage_m == pytest.approx(1500.0)
+    assert core.status.speed_mps == pytest.approx(5.0)
+    assert [decode_output(o).seq_no for o in outputs] == [0]
+
+
+def test_epochs_are_the_strobe_plus_k_over_the_rate(ring: TrackMap) -> None:
+    core = ListenerCore(ring)
+    core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
+    core.feed(packet(SensorType.STROBE, 1, 50.0), 0.0)
+    for seq in range(2, 6):
+        core.feed(packet(SensorType.IMU, seq, *IMU_LEVEL), 0.0)
+    assert core.filter.epoch_s == pytest.approx(50.03)
+    core.feed(packet(SensorType.ODOMETER, 6, 0.0, 0.05), 0.0)
+    assert core.filter.epoch_s == pytest.approx(50.03)  # odometer k = 0: 50.00, not ahead
+    core.feed(packet(SensorType.STROBE, 7, 51.0), 0.0)
+    core.feed(packet(SensorType.IMU, 8, *IMU_LEVEL), 0.0)
+    assert core.filter.epoch_s == pytest.approx(51.0)
+
+
+def test_under_loss_the_sequence_distance_keeps_the_epoch_from_lagging(ring: TrackMap) -> None:
+    core = ListenerCore(ring, ListenerConfig(reorder_max_wait_s=0.0))
+    core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
+    core.feed(packet(SensorType.STROBE, 1, 10.0), 0.0)
+    # 200 SEQ_NO later (at most 122 packets a second): at least 1.6 s of IMU ticks have passed.
+    core.feed(packet(SensorType.IMU, 201, *IMU_LEVEL), 1.0)
+    assert core.filter.epoch_s >= 11.6
+    assert core.buffer.lost == 199
+
+
+def test_reordered_packets_are_processed_in_order(ring: TrackMap) -> None:
+    core = ListenerCore(ring)
+    stream = [packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0)]
+    stream += [packet(SensorType.IMU, seq, *IMU_LEVEL) for seq in range(1, 9)]
+    shuffled = [stream[i] for i in (0, 2, 1, 4, 3, 8, 5, 7, 6)]
+    for datagram in shuffled:
+        core.feed(datagram, 0.0)
+    assert core.counters.processed["imu"] == 8 and not core.counters.dropped
+    assert core.filter.epoch_s == pytest.approx(0.07)
+
+
+def test_obcu_link_is_lost_after_three_seconds_without_ack(ring: TrackMap) -> None:
+    core = ListenerCore(ring)
+    core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 10.0)
+    assert not core.link_lost(12.9)
+    assert core.link_lost(13.1)
+    core.on_ack(encode_ack_seq(0), 13.2)
+    assert not core.link_lost(16.1) and core.link_lost(16.3)
+    core.on_ack(b"\x00", 16.4)
+    assert core.counters.acks_malformed == 1 and core.last_ack_seq == 0
+
+
+def encode_ack_seq(seq: int) -> bytes:
+    from protocol.udp import Ack
+
+    return encode_ack(Ack(seq))
+
+
+def test_stop_ends_the_listener_and_what_follows_is_counted(ring: TrackMap) -> None:
+    core = ListenerCore(ring)
+    core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
+    core.feed(packet(SensorType.IMU, 2, *IMU_LEVEL), 0.0)  # waits for 1
+    outputs = core.feed(packet(SensorType.STOP, 1), 0.0)
+    assert core.stopped
+    assert outputs, "STOP flushes a last OUTPUT"
+    core.feed(packet(SensorType.IMU, 3, *IMU_LEVEL), 0.0)
+    assert core.counters.dropped["after_stop"] == 2
+    assert core.counters.accounted(len(core.buffer)) == core.counters.received == 4
+
+
+def test_imu_alone_is_degraded_and_a_silent_imu_and_odometer_is_lost(ring: TrackMap) -> None:
+    """The first STROBE after GROUND_TRUTH sets the time base; silence is measured from it."""
+    core = ListenerCore(ring, ListenerConfig(sensors=frozenset({"imu"})))
+    core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
+    for seq in range(1, 80):
+        core.feed(packet(SensorType.IMU, seq, *IMU_LEVEL), 0.0)
+    assert core.status is not None and core.status.health is Health.DEGRADED
+    assert core.counters.processed["imu"] == 79
+    everything = ListenerCore(ring)
+    everything.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
+    everything.feed(packet(SensorType.STROBE, 1, 0.0), 0.0)
+    everything.feed(packet(SensorType.IMU, 2, *IMU_LEVEL), 0.0)
+    everything.feed(packet(SensorType.STROBE, 3, 5.0), 0.0)
+    everything.feed(packet(SensorType.GPS, 4, 44.512, 11.318, 42.0), 0.0)
+    assert everything.status is not None and everything.status.health is Health.LOST
+
+
+def test_fuzz_ten_thousand_datagrams_all_accounted() -> None:
+    result = fuzz_listener(10_000, seed=11)
+    assert result.fed == result.received == result.accounted == 10_000
+    assert result.processed["imu"] > 100 and result.dropped["length_mismatch"] > 100
+
+
+@pytest.mark.timeout(60)
+def test_fuzz_over_udp_into_a_running_listener(ring: TrackMap) -> None:
+    core = ListenerCore(ring)
+    datagrams = [d for d in fuzz_datagrams(np.random.default_rng(5), 3000) if d[:1] != bytes([10])]
+    stop = threading.Event()
+    with ListenerRunner(core, input_address=("127.0.0.1", 0),
+                        obcu_address=("127.0.0.1", 9)) as runner:  # fmt: skip
+        thread = threading.Thread(target=runner.run, args=(stop,))
+        thread.start()
+        try:
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+                for index, datagram in enumerate(datagrams):
+                    sender.sendto(datagram, runner.input_address)
+                    if index % 100 == 99:
+                        wait_for(lambda i=index: core.counters.received > i - 50, timeout_s=5.0)
+            assert wait_for(lambda: core.counters.received == len(datagrams), timeout_s=20.0)
+        finally:
+            stop.set()
+            thread.join(timeout=10.0)
+    assert not thread.is_alive()
+    counters = core.counters
+    assert counters.accounted(len(core.buffer)) == counters.received == len(datagrams)
+
+
+def test_a_restarted_sender_is_followed_to_its_new_time_base(ring: TrackMap) -> None:
+    core = ListenerCore(ring)
+    core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
+    core.feed(packet(SensorType.STROBE, 1, 1000.0), 0.0)
+    core.feed(packet(SensorType.IMU, 2, *IMU_LEVEL), 0.0)
+    assert core.filter.epoch_s == pytest.approx(1000.0)
+    # The sender restarts: SEQ_NO from 0 again, GROUND_TRUTH first, its clock from 0.
+    for seq in range(3, 2000):
+        core.feed(packet(SensorType.IMU, seq, *IMU_LEVEL), 0.0)
+    core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.2), 1.0)
+    core.feed(packet(SensorType.STROBE, 1, 0.0), 1.0)
+    core.feed(packet(SensorType.IMU, 2, *IMU_LEVEL), 1.0)
+    assert core.counters.processed["ground_truth"] == 2
+    assert core.filter.epoch_s == pytest.approx(0.0)
+    assert core.status is not None and core.status.chainage_m == pytest.approx(200.0, abs=0.1)
+    assert core.status.health is Health.OK

@@ -1,0 +1,129 @@
+"""Commands to a vehicle on behalf of a user: checked, sent over Zenoh, answered, audited.
+
+Each attempt is audited in a transaction of its own, whatever became of it: accepted or refused
+by the vehicle, refused by the trackside (vehicle not alive, not held by the user), timed out,
+or failed on the link.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from typing import Any
+
+from sqlalchemy.orm import Session, sessionmaker
+
+from protocol import ProtocolError, RequestTimeoutError
+from protocol import messages as m
+from trackdb.journey import journey_profile_message
+from trackside.bridge import ZenohBridge
+from trackside.errors import (
+    ConflictError,
+    NotFoundError,
+    TracksideError,
+    VehicleLinkError,
+    VehicleTimeoutError,
+)
+from trackside.models import User
+from trackside.services import audit, holds
+from trackside.services.journeys import get_journey, validate_journey
+
+__all__ = ["CommandService"]
+
+
+class CommandService:
+    """Sends commands and journey profiles for users who hold the vehicle."""
+
+    def __init__(
+        self, factory: sessionmaker[Session], bridge: ZenohBridge, *, timeout_s: float
+    ) -> None:
+        self._factory = factory
+        self._bridge = bridge
+        self.timeout_s = timeout_s
+        # Unique across restarts of the service, so a vehicle never sees an id twice.
+        self._ids = itertools.count(time.time_ns() // 1000)
+
+    def _audit(
+        self, user: User, vehicle_id: str, action: str, request: dict[str, Any],
+        result: audit.AuditResult, detail: str | None,
+    ) -> None:  # fmt: skip
+        entry = audit.audit_entry(
+            user=user.username, vehicle_id=vehicle_id, action=action, request=request,
+            result=result, detail=detail,
+        )  # fmt: skip
+        audit.record(self._factory, entry)
+
+    def _check(self, user: User, vehicle_id: str) -> None:
+        snapshot = self._bridge.snapshot(vehicle_id)
+        if snapshot is None or not snapshot.alive:
+            raise NotFoundError(f"{vehicle_id} is not alive")
+        with self._factory() as db:
+            holds.check_holder(db, vehicle_id, user)
+
+    def send(self, user: User, vehicle_id: str, body: m.CommandBody) -> m.CommandAck:
+        """Send ``body`` to the vehicle and return its acknowledgement (accepted or refused).
+
+        Raises :class:`NotFoundError` (not alive), :class:`ConflictError` (not held by the
+        user), :class:`VehicleTimeoutError`, :class:`VehicleLinkError`.
+        """
+        action = audit.command_action(body)
+        request = body.model_dump(mode="json")
+        try:
+            self._check(user, vehicle_id)
+            command = m.Command(
+                vehicle_id=vehicle_id, command_id=next(self._ids), issued_by=user.username,
+                body=body,
+            )  # fmt: skip
+            ack = self._bridge.command(command, timeout_s=self.timeout_s)
+        except (NotFoundError, ConflictError) as exc:
+            self._audit(user, vehicle_id, action, request, audit.AuditResult.REFUSED, str(exc))
+            raise
+        except RequestTimeoutError as exc:
+            self._audit(user, vehicle_id, action, request, audit.AuditResult.TIMEOUT, str(exc))
+            raise VehicleTimeoutError(f"{vehicle_id} did not answer") from exc
+        except ProtocolError as exc:
+            self._audit(user, vehicle_id, action, request, audit.AuditResult.FAILED, str(exc))
+            raise VehicleLinkError(f"{vehicle_id}: {exc}") from exc
+        result = audit.AuditResult.ACCEPTED if ack.accepted else audit.AuditResult.REFUSED
+        self._audit(user, vehicle_id, action, request | {"command_id": ack.command_id}, result,
+                    ack.reason)  # fmt: skip
+        return ack
+
+    def send_journey_profile(
+        self, user: User, vehicle_id: str, journey_id: str, version: int | None, timeout_s: float
+    ) -> m.JourneyProfileAck:
+        """Send a stored journey as the vehicle's journey profile; its JPAck (accepted or
+        rejected). Raises as :meth:`send`, and :class:`ConflictError` when no session is open
+        or the journey is no longer valid on its line, :class:`NotFoundError` for an unknown
+        journey."""
+        action = "journey_profile"
+        request: dict[str, Any] = {"journey_id": journey_id, "version": version}
+        try:
+            self._check(user, vehicle_id)
+            if not self._bridge.session_open(vehicle_id):
+                raise ConflictError(f"{vehicle_id} has no session open")
+            with self._factory() as db:
+                stored = get_journey(db, journey_id, version)
+                check, line_version = validate_journey(db, stored.journey)
+            if not check.valid:
+                raise ConflictError(
+                    f"journey {journey_id} no longer valid on line version {line_version}"
+                )
+            profile = journey_profile_message(
+                stored.journey, check, vehicle_id=vehicle_id, version=stored.version,
+                track_data_version=line_version, status=m.JourneyProfileStatus.VALID,
+            )  # fmt: skip
+            ack = self._bridge.send_journey_profile(profile, timeout_s=timeout_s)
+        except TracksideError as exc:
+            self._audit(user, vehicle_id, action, request, audit.AuditResult.REFUSED, str(exc))
+            raise
+        except ProtocolError as exc:
+            self._audit(user, vehicle_id, action, request, audit.AuditResult.FAILED, str(exc))
+            raise VehicleLinkError(f"{vehicle_id}: {exc}") from exc
+        request["version"] = stored.version
+        if ack is None:
+            self._audit(user, vehicle_id, action, request, audit.AuditResult.TIMEOUT, None)
+            raise VehicleTimeoutError(f"{vehicle_id} did not acknowledge the journey profile")
+        result = audit.AuditResult.ACCEPTED if ack.accepted else audit.AuditResult.REFUSED
+        self._audit(user, vehicle_id, action, request, result, ack.reason)
+        return ack
