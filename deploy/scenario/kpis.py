@@ -116,8 +116,17 @@ def compute_kpis(
         },
         "nmpc_ms": _percentiles_ms(counters.nmpc_solve_times_s),
         "vc_interventions": list(vc_interventions),
+        "max_wheel_slip_mps": _finite_max(columns.get("wheel_slip_mps")),
         **_energy_kpis(columns),
     }
+
+
+def _finite_max(values: np.ndarray | None) -> float | None:
+    """The largest finite value, or None when there is none (a column the plant lacks)."""
+    if values is None:
+        return None
+    finite = values[np.isfinite(values)]
+    return float(finite.max()) if finite.size else None
 
 
 RANGE_EXTENDER_SETTLE_S = 120.0

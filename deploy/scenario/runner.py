@@ -44,6 +44,7 @@ from deploy.scenario.schema import (
     Action,
     AtoFailure,
     Fault,
+    FrictionDrop,
     Obstacle,
     OdometerFailure,
     RelayFault,
@@ -65,6 +66,7 @@ from onboard.vc import hardware as vc_hardware
 from onboard.vc.installation import VcFaults
 from onboard.vc.runner import ScenarioResult
 from onboard.vc.runner import run_scenario as run_vc_scenario
+from onboard.vcu.vehicle import BogieVehicle
 from protocol import ZenohSettings, open_session
 from protocol import messages as m
 from trackdb import TrackMap, load_seed_line
@@ -82,9 +84,9 @@ WAIT_S = 10.0
 """How long, in wall time, a message sent to the vehicle may take to reach it [s]."""
 OBSTACLE_MARGIN_M = 20.0
 """The RBC ends the MA this far before a reported obstacle [m]."""
-WHOLE_STACK_FAULTS = (AtoFailure, Obstacle, OdometerFailure, RelayFault, SensorDropout,
-                      ShortenedAuthority, TachometerFault, TracksideRestart, UdpLinkFault,
-                      VigilanceAbsent)  # fmt: skip
+WHOLE_STACK_FAULTS = (AtoFailure, FrictionDrop, Obstacle, OdometerFailure, RelayFault,
+                      SensorDropout, ShortenedAuthority, TachometerFault, TracksideRestart,
+                      UdpLinkFault, VigilanceAbsent)  # fmt: skip
 """The faults a whole-stack run injects (docs/scenarios.md)."""
 
 
@@ -264,6 +266,9 @@ class _Stack:
         unwired = [f.kind for f in spec.faults if not isinstance(f, WHOLE_STACK_FAULTS)]
         if unwired:
             raise ScenarioRunError(f"faults not injected in whole-stack runs: {unwired}")
+        if spec.vehicle.fidelity != "bogie" and any(isinstance(f, FrictionDrop)
+                                                    for f in spec.faults):  # fmt: skip
+            raise ScenarioRunError("friction_drop needs the bogie model (vehicle.fidelity)")
         with ExitStack() as stack:
             scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ato-run-")))
             endpoint = loopback_endpoint()
@@ -390,6 +395,7 @@ class _Stack:
     def _faults(self, now_s: float) -> None:
         present = self.spec.operator.simulated
         internal_fault = False
+        adhesion = 1.0
         for index, fault in enumerate(self.spec.faults):
             if isinstance(fault, VigilanceAbsent):
                 present &= not fault.start_s <= now_s < fault.end_s
@@ -398,6 +404,8 @@ class _Stack:
                 if active and not self.node.stack.internal_fault and not internal_fault:
                     self.recorder.hazards_s.append(now_s)
                 internal_fault |= active
+            elif isinstance(fault, FrictionDrop) and fault.start_s <= now_s < fault.end_s:
+                adhesion = min(adhesion, fault.factor)
             elif isinstance(fault, Obstacle | ShortenedAuthority | TracksideRestart):
                 if index not in self._done and now_s >= fault.at_s:
                     self._done.add(index)
@@ -405,6 +413,8 @@ class _Stack:
                     self._inject(fault)
         self.operator_present = present
         self.node.stack.internal_fault = internal_fault
+        if isinstance(self.node.plant, BogieVehicle):
+            self.node.plant.adhesion_factor = adhesion
 
     def _inject(self, fault: Fault) -> None:
         if isinstance(fault, TracksideRestart):

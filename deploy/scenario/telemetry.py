@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from onboard.node import TASK_TABLE, OnboardNode
+from onboard.plant.interfaces import BogieTruth
 from onboard.runtime.clock import NS_PER_S
 
 __all__ = ["COLUMNS", "StopRecord", "TelemetryRecorder"]
@@ -35,7 +36,7 @@ COLUMNS = (
     "time_s", "position_m", "speed_mps", "acceleration_mps2", "force_n", "force_demand_n",
     "mrsp_mps", "reference_speed_mps", "permitted_speed_mps", "estimated_position_m",
     "sc_state", "ato_state", "etcs_mode", "vc_eb", "soc", "range_extender_kw",
-    "traction_energy_j",
+    "traction_energy_j", "wheel_slip_mps",
 )  # fmt: skip
 """The telemetry's columns: floats but the three states (their names as strings)."""
 
@@ -210,6 +211,7 @@ class TelemetryRecorder:
             "soc": float(soc),
             "range_extender_kw": extender_kw,
             "traction_energy_j": plant.traction_energy_j,
+            "wheel_slip_mps": _wheel_slip_mps(plant),
         }
         for column in COLUMNS:
             self.rows[column].append(values[column])
@@ -225,6 +227,17 @@ class TelemetryRecorder:
         """``telemetry.npz``: one array per column (``numpy.load(path)`` reads it)."""
         arrays: dict[str, Any] = dict(self.arrays())
         np.savez_compressed(path, **arrays)
+
+
+def _wheel_slip_mps(plant: object) -> float:
+    """The larger of the two wheelsets' |ω·r − v| on the bogie model [m/s]; NaN on the point
+    mass, whose wheels do not slip."""
+    truth = getattr(plant, "truth", None)
+    if not isinstance(truth, BogieTruth):
+        return math.nan
+    radius, speed = truth.wheel_radius_m, truth.speed_mps
+    return max(abs(truth.wheel_speed_front_radps * radius - speed),
+               abs(truth.wheel_speed_rear_radps * radius - speed))  # fmt: skip
 
 
 def _nan_if_none(value: float | None) -> float:

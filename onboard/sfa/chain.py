@@ -84,6 +84,7 @@ class SensorFusionChain:
         if not self._started:
             self._started = True
             self._start_position_m = truth.position_m
+            self.localisation.expect_near(truth.position_m)
             for datagram in self.modules.start(truth):
                 link.send(datagram, now_s)
         for datagram in self.modules.step(truth):

@@ -89,6 +89,7 @@ class Localisation:
         self._newest_epoch_s = -math.inf
         self._newest_arrival_s = -math.inf
         self._position_m: float | None = None
+        self._expected_m: float | None = None
         self._speed_mps = 0.0
         self._offset_m = 0.0
         self._next_ack_s: float | None = None
@@ -125,9 +126,17 @@ class Localisation:
         if self._next_ack_s is None:
             self._next_ack_s = arrival_s
 
+    def expect_near(self, position_m: float) -> None:
+        """Where the train stands before the first output (the GROUND_TRUTH it started from):
+        on a ring, the first chainage is unwrapped to the lap nearest this, so that a start at
+        chainage 0 that reads a little behind it is not taken for the end of the lap."""
+        self._expected_m = position_m
+
     def _unwrap(self, chainage_m: float) -> float:
         if self._position_m is None:
-            return chainage_m
+            if self._expected_m is None:
+                return chainage_m
+            return unwrap_near(self.track_map, chainage_m, self._expected_m)
         return unwrap_near(self.track_map, chainage_m, self._position_m)
 
     def step(self, now_s: float) -> list[bytes]:

@@ -40,6 +40,8 @@ class BogieVehicle:
         self.powertrain = Powertrain(PowertrainParameters(), soc=initial_soc)
         self.vcu = VehicleControlUnit(vcu_parameters_for(parameters))
         self._truth: BogieTruth = self.plant.truth()
+        self.adhesion_factor = 1.0
+        """μ₀ of the wheel–rail contact is scaled by this: below 1 on a wet or leafy patch."""
 
     @property
     def truth(self) -> BogieTruth:
@@ -106,6 +108,7 @@ class BogieVehicle:
                 brake_pressure_front_pa=max(commands.brake_pressure_front_pa, pipe_pa),
                 brake_pressure_rear_pa=max(commands.brake_pressure_rear_pa, pipe_pa),
             )
-        self.plant.step(dt_s, commands, gradient_permille=gradient_permille)
+        self.plant.step(dt_s, commands, gradient_permille=gradient_permille,
+                        adhesion_factor=self.adhesion_factor)  # fmt: skip
         self._truth = self.plant.truth()
         step_powertrain(self.powertrain, dt_s, self._truth, commands.range_extender_power_w)

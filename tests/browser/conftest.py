@@ -6,6 +6,7 @@ import os
 import shutil
 import threading
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -42,20 +43,35 @@ def console_url(
 ) -> Iterator[str]:
     """A trackside service (uvicorn in a thread, SQLite file) joined to the test's router."""
     port = free_tcp_port()
-    settings = Settings(
-        database_url=f"sqlite:///{tmp_path / 'ts.db'}", zenoh_connect=(router_endpoint,),
+    with serving_trackside(console_settings(router_endpoint, tmp_path, simulated_operators), port):
+        yield f"http://127.0.0.1:{port}/"
+
+
+def console_settings(
+    router_endpoint: str, directory: Path, simulated_operators: tuple[str, ...] = ()
+) -> Settings:
+    """The console tests' trackside: a SQLite file in ``directory``, the test's router."""
+    return Settings(
+        database_url=f"sqlite:///{directory / 'ts.db'}", zenoh_connect=(router_endpoint,),
         admin_user=ADMIN[0], admin_password=ADMIN[1],  # type: ignore[arg-type]
         simulated_operators=simulated_operators,
     )  # fmt: skip
+
+
+@contextmanager
+def serving_trackside(settings: Settings, port: int) -> Iterator[None]:
+    """The trackside app under uvicorn in a thread on ``port``, until the block ends."""
     server = uvicorn.Server(
         uvicorn.Config(create_app(settings), host="127.0.0.1", port=port, log_level="warning")
     )
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
     assert wait_for(lambda: server.started, 10.0)
-    yield f"http://127.0.0.1:{port}/"
-    server.should_exit = True
-    thread.join(10.0)
+    try:
+        yield
+    finally:
+        server.should_exit = True
+        thread.join(10.0)
 
 
 @pytest.fixture

@@ -6,16 +6,24 @@ import re
 import shutil
 import threading
 from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 import pytest
 
+from deploy.ports import free_tcp_port
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import RealTimeClock
 from protocol import ZenohSettings, open_session, request
 from protocol import messages as m
 from protocol.registry import COMMAND
-from tests.browser.conftest import CHROMIUM, CHROMIUM_ARGS
+from tests.browser.conftest import (
+    CHROMIUM,
+    CHROMIUM_ARGS,
+    Artefacts,
+    console_settings,
+    serving_trackside,
+)
 from tests.conftest import wait_for
 from trackdb import TrackMap, load_seed_line
 
@@ -35,6 +43,13 @@ def simulated_operators() -> tuple[str, ...]:
 def moving_vehicle(router_endpoint: str, console_url: str) -> Iterator[None]:
     """URV1 running; after ``console_url``, whose simulated operator rearms its EB."""
     del console_url
+    with running_urv1(router_endpoint):
+        yield
+
+
+@contextmanager
+def running_urv1(router_endpoint: str) -> Iterator[None]:
+    """URV1 in real time at 5×, in remote driving at 30 km/h (once its EB is rearmed)."""
     with open_session(ZenohSettings(connect=(router_endpoint,))) as session:
         node = OnboardNode(
             OnboardSettings(vehicle_id="URV1"), session=session, clock=RealTimeClock(5.0),
@@ -89,3 +104,40 @@ def test_fleet_page_lists_urv1_and_its_status_changes(console_url: str, tmp_path
         assert speed > 0.0
         page.screenshot(path=str(tmp_path / "console.png"))
         browser.close()
+
+
+def test_the_console_reconnects_after_a_trackside_restart(
+    router_endpoint: str, tmp_path: Path, artefacts: Artefacts
+) -> None:
+    """The service goes down and comes back on the same port and database while URV1 runs:
+    the open page says so, reconnects by itself with the same login, and updates again."""
+    from playwright.sync_api import expect, sync_playwright
+
+    port = free_tcp_port()
+    settings = console_settings(router_endpoint, tmp_path, ("URV1",))
+    with ExitStack() as stack:
+        first_service = ExitStack()
+        first_service.enter_context(serving_trackside(settings, port))
+        stack.callback(first_service.close)
+        stack.enter_context(running_urv1(router_endpoint))
+        playwright = stack.enter_context(sync_playwright())
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        stack.callback(browser.close)
+        page = browser.new_page()
+        page.goto(f"http://127.0.0.1:{port}/")
+        page.fill("input[name=username]", "operator")
+        page.fill("input[name=password]", "console-pw")
+        page.click("button[type=submit]")
+        connection = page.locator("#connection")
+        position = page.locator("tr[data-vehicle=URV1] td[data-field=position]")
+        expect(connection).to_have_text("live", timeout=5000)
+        expect(position).not_to_have_text(position.inner_text(), timeout=5000)
+        artefacts.screenshot(page, "before-restart")
+
+        first_service.close()  # the service goes; the vehicle runs on
+        expect(connection).to_have_text("offline", timeout=10_000)
+        artefacts.screenshot(page, "service-down")
+        with serving_trackside(settings, port):
+            expect(connection).to_have_text("live", timeout=15_000)
+            expect(position).not_to_have_text(position.inner_text(), timeout=10_000)
+            artefacts.screenshot(page, "after-restart")

@@ -11,7 +11,8 @@ from deploy.scenario.runner import RunOptions, run_scenario
 pytestmark = pytest.mark.e2e
 
 FAULT_SCENARIOS = ("ma-shortened", "obstacle", "vigilance-absent", "ato-failure",
-                   "trackside-restart", "gps-outage", "odometer-failure", "udp-loss")  # fmt: skip
+                   "trackside-restart", "gps-outage", "odometer-failure", "udp-loss",
+                   "wheel-slip")  # fmt: skip
 
 
 @pytest.mark.parametrize("name", FAULT_SCENARIOS)
