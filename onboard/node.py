@@ -59,6 +59,7 @@ from protocol.registry import (
     MOVEMENT_AUTHORITY,
     SESSION,
     SESSION_TERMINATION,
+    SPEED_RESTRICTION,
     STATUS,
     STATUS_ACK,
 )
@@ -195,6 +196,7 @@ class OnboardNode:
         self._terminations = TypedSubscriber(session, SESSION_TERMINATION, vehicle=self.vehicle_id)
         self._termination_out = TypedPublisher(session, SESSION_TERMINATION, **chunks)
         self._authorities = TypedSubscriber(session, MOVEMENT_AUTHORITY, vehicle=self.vehicle_id)
+        self._restrictions = TypedSubscriber(session, SPEED_RESTRICTION, vehicle=self.vehicle_id)
         self._line_version: m.LineVersionReply | None = None
         self.barrier_misses = 0
         """Lockstep status barriers that ended without the acknowledgement (a run with none
@@ -331,11 +333,24 @@ class OnboardNode:
             self.emit(m.EventSeverity.INFO, "etcs.ma", f"MA {message.ma_id} {what}",
                       now_ns=now_ns)  # fmt: skip
 
+    def _take_speed_restrictions(self, now_ns: int) -> None:
+        while (received := self._restrictions.try_recv()) is not None:
+            _, message = received
+            if message.vehicle_id != self.vehicle_id:
+                continue
+            try:
+                what = self.stack.receive_speed_restriction(message, now_ns / NS_PER_S)
+            except ValueError as exc:
+                self.emit(m.EventSeverity.WARNING, "etcs.tsr_refused", str(exc), now_ns=now_ns)
+                continue
+            self.emit(m.EventSeverity.INFO, "etcs.tsr", what, now_ns=now_ns)
+
     def _task_commands(self, now_ns: int) -> None:
         now_s = now_ns / NS_PER_S
         self._take_line_version(now_ns)
         self._take_journeys(now_ns)
         self._take_authorities(now_ns)
+        self._take_speed_restrictions(now_ns)
         while True:
             with self._inbox_lock:
                 if not self._inbox:
@@ -490,10 +505,11 @@ class OnboardNode:
         self._ack_pending = self.lockstep and client.established
 
     @property
-    def inputs_received(self) -> tuple[int, int]:
-        """Journey profiles and movement authorities received so far (lockstep drivers wait on
+    def inputs_received(self) -> tuple[int, int, int]:
+        """Journey profiles, movement authorities and TSRs received so far (lockstep drivers wait on
         these so that a message sent between two slices is taken at the next one)."""
-        return self._journeys.stats.received, self._authorities.stats.received
+        return (self._journeys.stats.received, self._authorities.stats.received,
+                self._restrictions.stats.received)  # fmt: skip
 
     @property
     def reports_sent(self) -> int:
@@ -574,7 +590,8 @@ class OnboardNode:
         self._commands.close()
         for closable in (
             self._journeys, self._journey_acks, self._status_acks, self._status_acks_pushed,
-            self._terminations, self._termination_out, self._authorities, self._status,
+            self._terminations, self._termination_out, self._authorities, self._restrictions,
+            self._status,
             self._events, self._tracksides,
         ):  # fmt: skip
             closable.close()

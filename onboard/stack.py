@@ -34,7 +34,7 @@ from onboard.track_database_manager import TrackDatabaseManager
 from onboard.vc.installation import VcInstallation
 from onboard.vc.ipc import VcEventKind
 from protocol import messages as m
-from trackdb import TrackMap
+from trackdb import TemporarySpeedRestriction, TrackMap
 
 __all__ = ["OnboardStack", "Plant", "StackEvent", "authority_from_extent"]
 
@@ -204,6 +204,34 @@ class OnboardStack:
             track_description_m=message.authority.track_description_m,
         )  # fmt: skip
         return change.value
+
+    def receive_speed_restriction(self, message: m.SpeedRestrictionMessage, now_s: float) -> str:
+        """Put an RBC's TSR in force on the TrackMap that ETCS and the ADF share, or revoke it;
+        the ADF replans the current leg. What happened, for the event log.
+
+        Raises
+        ------
+        ValueError
+            If it is for another line, or its range is not on this line.
+        """
+        track_map = self.track_map
+        if message.line_id != track_map.line.id:
+            raise ValueError(f"TSR on line {message.line_id!r}, the vehicle is on "
+                             f"{track_map.line.id!r}")  # fmt: skip
+        if message.speed_mps is None:
+            if not track_map.revoke_temporary_speed_restriction(message.restriction_id):
+                return f"TSR {message.restriction_id} not in force: nothing to revoke"
+            what = f"TSR {message.restriction_id} revoked"
+        else:
+            track_map.add_temporary_speed_restriction(TemporarySpeedRestriction(
+                id=message.restriction_id, start_m=message.start_m, end_m=message.end_m,
+                speed_mps=message.speed_mps,
+            ))  # fmt: skip
+            what = (f"TSR {message.restriction_id} {message.speed_mps * 3.6:.0f} km/h over "
+                    f"{message.start_m:.0f}..{message.end_m:.0f} m")  # fmt: skip
+        self.driving.speed_limits_changed(now_s, position_m=self.position_m,
+                                          speed_mps=self.speed_mps)  # fmt: skip
+        return what
 
     # -- operator requests -----------------------------------------------------------------------
 

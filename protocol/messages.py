@@ -59,6 +59,7 @@ __all__ = [
     "SessionReject",
     "SessionRejectReason",
     "SessionRequest",
+    "SpeedRestrictionMessage",
     "SessionResponse",
     "SessionTermination",
     "SkipStopCommand",
@@ -659,3 +660,25 @@ class MovementAuthorityAck(Message):
     accepted: bool
     reason: str | None = Field(default=None, max_length=256)
     sim_time_s: NonNegativeFloat = Field(description="Onboard simulated time [s]")
+
+
+class SpeedRestrictionMessage(Message):
+    """A temporary speed restriction from the RBC to one vehicle (ETCS packets 65 and 66): put
+    in force over ``[start_m, end_m)`` of the line, or revoked when ``speed_mps`` is ``None``."""
+
+    vehicle_id: VehicleId
+    restriction_id: str = Field(
+        min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.:-]+$", description="The TSR's id"
+    )
+    line_id: LineId
+    start_m: NonNegativeFloat = Field(description="Start, chainage [m]")
+    end_m: float = Field(gt=0.0, allow_inf_nan=False, description="End, chainage [m]")
+    speed_mps: float | None = Field(
+        gt=0.0, le=100.0, allow_inf_nan=False, description="Speed limit [m/s]; null: revoked"
+    )
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.end_m <= self.start_m:
+            raise ValueError("end_m must lie after start_m")
+        return self

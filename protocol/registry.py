@@ -39,6 +39,7 @@ __all__ = [
     "MOVEMENT_AUTHORITY_CURRENT",
     "SESSION",
     "SESSION_TERMINATION",
+    "SPEED_RESTRICTION",
     "STATUS_ACK",
     "STATUS",
     "TOPICS",
@@ -206,6 +207,10 @@ MOVEMENT_AUTHORITY: Topic[m.MovementAuthorityMessage] = Topic(
     "movement_authority", "ato/ts/rbc/{vehicle}/ma", m.MovementAuthorityMessage,
     Direction.TRACKSIDE_TO_ONBOARD, Delivery.FIFO,
 )  # fmt: skip
+SPEED_RESTRICTION: Topic[m.SpeedRestrictionMessage] = Topic(
+    "speed_restriction", "ato/ts/rbc/{vehicle}/tsr", m.SpeedRestrictionMessage,
+    Direction.TRACKSIDE_TO_ONBOARD, Delivery.FIFO,
+)  # fmt: skip
 MOVEMENT_AUTHORITY_CURRENT: Topic[m.MovementAuthorityRequest] = Topic(
     "movement_authority_current", "ato/ts/rbc/{vehicle}/current_ma", m.MovementAuthorityRequest,
     Direction.ONBOARD_TO_TRACKSIDE, Delivery.QUERY, reply_type=m.MovementAuthorityReply,
@@ -233,4 +238,5 @@ TOPICS: tuple[Topic[Any], ...] = (
     MOVEMENT_AUTHORITY,
     MOVEMENT_AUTHORITY_CURRENT,
     MOVEMENT_AUTHORITY_ACK,
+    SPEED_RESTRICTION,
 )

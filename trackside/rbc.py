@@ -42,6 +42,7 @@ from protocol.registry import (
     MOVEMENT_AUTHORITY,
     MOVEMENT_AUTHORITY_ACK,
     MOVEMENT_AUTHORITY_CURRENT,
+    SPEED_RESTRICTION,
 )
 from trackside.errors import (
     EndOfAuthorityBehindVehicleError,
@@ -138,6 +139,7 @@ class RbcEmulator:
         self._acknowledgements: dict[str, m.MovementAuthorityAck] = {}
         self._listeners: list[MaListener] = []
         self._publishers: dict[str, TypedPublisher[m.MovementAuthorityMessage]] = {}
+        self._tsr_publishers: dict[str, TypedPublisher[m.SpeedRestrictionMessage]] = {}
         self._queryable: TypedQueryable[m.MovementAuthorityRequest] | None = None
         self._acks: TypedSubscriber[m.MovementAuthorityAck] | None = None
         if session is not None:
@@ -270,12 +272,48 @@ class RbcEmulator:
                 current.line_version, None,
             )  # fmt: skip
 
+    # -- temporary speed restrictions ---------------------------------------------------------
+
+    def restrict_speed(self, vehicle_id: str, message: m.SpeedRestrictionMessage) -> None:
+        """Send a TSR (or its revocation, ``speed_mps`` None) to the vehicle.
+
+        Raises
+        ------
+        MovementAuthorityRefusedError
+            If the trackside does not hold the line, or the range is not on it.
+        TransportError
+            If it could not be published.
+        """
+        if message.vehicle_id != vehicle_id:
+            raise MovementAuthorityRefusedError(
+                f"TSR for {message.vehicle_id} sent to {vehicle_id}"
+            )
+        info = self._info(message.line_id)
+        if self._line_info is not None and info is None:
+            raise MovementAuthorityRefusedError(f"the trackside holds no line {message.line_id!r}")
+        if info is not None and message.end_m > info.length_m:
+            raise MovementAuthorityRefusedError(
+                f"TSR {message.restriction_id!r}: {message.start_m:g}..{message.end_m:g} m is"
+                f" not on line {message.line_id!r} (0..{info.length_m:g} m)"
+            )
+        if self._session is None:
+            return
+        with self._change_lock:
+            publisher = self._tsr_publishers.get(vehicle_id)
+            if publisher is None:
+                publisher = TypedPublisher(self._session, SPEED_RESTRICTION, vehicle=vehicle_id)
+                self._tsr_publishers[vehicle_id] = publisher
+            publisher.put(message)
+
     def close(self) -> None:
         """Stop answering and publishing; the MAs held are forgotten with the object."""
         with self._change_lock:
             for publisher in self._publishers.values():
                 publisher.close()
             self._publishers.clear()
+            for tsr_publisher in self._tsr_publishers.values():
+                tsr_publisher.close()
+            self._tsr_publishers.clear()
         if self._acks is not None:
             self._acks.close()
         if self._queryable is not None:

@@ -52,6 +52,7 @@ from deploy.scenario.schema import (
     SensorDropout,
     ShortenedAuthority,
     TachometerFault,
+    TemporarySpeedRestriction,
     TracksideRestart,
     UdpLinkFault,
     VigilanceAbsent,
@@ -85,8 +86,9 @@ WAIT_S = 10.0
 OBSTACLE_MARGIN_M = 20.0
 """The RBC ends the MA this far before a reported obstacle [m]."""
 WHOLE_STACK_FAULTS = (AtoFailure, FrictionDrop, Obstacle, OdometerFailure, RelayFault,
-                      SensorDropout, ShortenedAuthority, TachometerFault, TracksideRestart,
-                      UdpLinkFault, VigilanceAbsent)  # fmt: skip
+                      SensorDropout, ShortenedAuthority, TachometerFault,
+                      TemporarySpeedRestriction, TracksideRestart, UdpLinkFault,
+                      VigilanceAbsent)  # fmt: skip
 """The faults a whole-stack run injects (docs/scenarios.md)."""
 
 
@@ -411,6 +413,10 @@ class _Stack:
                     self._done.add(index)
                     self.recorder.hazards_s.append(now_s)
                     self._inject(fault)
+            elif isinstance(fault, TemporarySpeedRestriction):
+                if index not in self._done and now_s >= fault.at_s:
+                    self._done.add(index)
+                    self._speed_restriction(f"tsr-{index + 1}", fault)
         self.operator_present = present
         self.node.stack.internal_fault = internal_fault
         if isinstance(self.node.plant, BogieVehicle):
@@ -436,6 +442,22 @@ class _Stack:
         self.actions.append(
             _ActionLog(f"rbc.{fault.kind}", self.node.clock.now_s, accepted, answer.text[:200])
         )
+
+    def _speed_restriction(self, restriction_id: str, fault: TemporarySpeedRestriction) -> None:
+        """The RBC (REST, as admin) sends a TSR; the run goes on once the vehicle has it."""
+        before = self.node.inputs_received[2]
+        body = {"id": restriction_id, "line_id": self.spec.line, "start_m": fault.start_m,
+                "end_m": fault.end_m, "speed_kmh": fault.speed_kmh}  # fmt: skip
+        answer = self.rest.post(f"/api/v1/rbc/{self.spec.vehicle.id}/tsr", json=body,
+                                headers=self.headers)  # fmt: skip
+        accepted = answer.status_code == 201
+        self.actions.append(
+            _ActionLog("rbc.tsr", self.node.clock.now_s, accepted, answer.text[:200])
+        )
+        if not accepted:
+            self.failures.append(f"TSR {restriction_id} refused: {answer.text[:200]}")
+        elif not _wait(lambda: self.node.inputs_received[2] > before):
+            raise ScenarioRunError("the RBC's TSR never reached the vehicle")
 
     def _movement_authority(self, end_m: float, *, absolute: bool = False) -> Any:
         """The RBC (REST, as admin) issues an MA from here to ``end_m`` (a chainage, or with

@@ -52,6 +52,9 @@ stays under the ETCS permitted curve, whose SBD uses the full A_brake_service bu
 reaction and build-up times earlier (a stop for the EoA is not a stop planned at the timetable's
 pace: it comes when the MA is shortened, and must never bring an ETCS intervention)."""
 PASSED_M = 10.0
+TSR_DELAYS_S = (15.0, 30.0, 60.0, 120.0, 300.0)
+"""How late [s] a leg replanned under a new TSR may arrive, tried in turn when it cannot keep
+its schedule."""
 DELAY_PROBE_M = 0.5
 
 
@@ -209,6 +212,27 @@ class DrivingFunction:
         self.fallback_active = False
         self._leave_for_next_stop(now_s, position_m=position_m, speed_mps=speed_mps)
 
+    def speed_limits_changed(self, now_s: float, *, position_m: float, speed_mps: float) -> None:
+        """A TSR was put in force or revoked (the TrackMap's MRSP changed): the current leg is
+        replanned under the new limits, on its schedule if it can be, else up to
+        :data:`TSR_DELAYS_S` late."""
+        if self.journey is None or self.autonomous is None or self.fallback_active:
+            return
+        stop = self.next_stop(position_m)
+        if stop is None:
+            return
+        self._eoa_stop_m = None
+        travelled = position_m - self._origin_m
+        for delay_s in (0.0, *TSR_DELAYS_S):
+            before = self.replans
+            # Braking down to the new limit as for an EoA: under the ETCS permitted curve,
+            # which the TSR lowered at once.
+            self._replan(now_s, travelled, speed_mps, stop.distance_m,
+                         arrival_s=stop.arrival_s + delay_s,
+                         braking_mps2=AUTHORITY_BRAKING_MPS2)  # fmt: skip
+            if self.replans > before:
+                return
+
     def _leave_for_next_stop(self, now_s: float, *, position_m: float, speed_mps: float) -> None:
         stop = self.next_stop(position_m)
         if stop is None or self.fallback_active:
@@ -322,7 +346,7 @@ class DrivingFunction:
 
     def _replan(
         self, now_s: float, travelled_m: float, speed_mps: float, stop_m: float,
-        *, arrival_s: float | None,
+        *, arrival_s: float | None, braking_mps2: float | None = None,
     ) -> None:  # fmt: skip
         """A new current leg from the measured state; the journey's later legs kept when the
         leg ends at the journey's next stop."""
@@ -339,7 +363,9 @@ class DrivingFunction:
                 start_chainage_m=self.journey.start_chainage_m, distance_m=travelled_m,
                 speed_mps=speed_mps, stop_distance_m=stop_m - travelled_m,
                 cruise_mps=max(cap, speed_mps), arrival_s=arrival_s,
-                braking_mps2=AUTHORITY_BRAKING_MPS2 if arrival_s is None else MAX_BRAKING_MPS2,
+                braking_mps2=braking_mps2 or (
+                    AUTHORITY_BRAKING_MPS2 if arrival_s is None else MAX_BRAKING_MPS2
+                ),
             )  # fmt: skip
         except InfeasibleLegError:
             return  # too close to change: the ceilings and ETCS still hold the train back

@@ -95,3 +95,21 @@ def test_skip_stop_and_train_hold_are_checked_against_the_journey() -> None:
     assert onboard.refusal(m.TrainHoldCommand(hold=True)) is None
     onboard.train_hold(True, 0.0)
     assert onboard.driving.hold
+
+
+def test_an_rbc_speed_restriction_lowers_the_mrsp_until_revoked() -> None:
+    onboard = stack(TrackMap(load_seed_line("bologna-ring")))
+    track_map = onboard.track_map
+    before = track_map.mrsp_mps(1200.0)
+    tsr = m.SpeedRestrictionMessage(
+        vehicle_id="URV1", restriction_id="works", line_id="bologna-ring", start_m=1100.0,
+        end_m=1400.0, speed_mps=20 / 3.6,
+    )  # fmt: skip
+    assert "works" in onboard.receive_speed_restriction(tsr, 10.0)
+    assert track_map.mrsp_mps(1200.0) == pytest.approx(20 / 3.6, abs=1e-9)
+    assert track_map.mrsp_mps(1500.0) == pytest.approx(before, abs=1e-9)
+    revoked = tsr.model_copy(update={"speed_mps": None})
+    assert "revoked" in onboard.receive_speed_restriction(revoked, 20.0)
+    assert track_map.mrsp_mps(1200.0) == pytest.approx(before, abs=1e-9)
+    with pytest.raises(ValueError, match="line"):
+        onboard.receive_speed_restriction(tsr.model_copy(update={"line_id": "other"}), 30.0)

@@ -208,6 +208,19 @@ movement_authority_acks = st.builds(
     reason=st.none() | st.text(max_size=256), sim_time_s=non_negative,
 )  # fmt: skip
 
+
+@st.composite
+def speed_restriction_messages(draw: st.DrawFn) -> m.SpeedRestrictionMessage:
+    start = draw(st.floats(0.0, 1e6, allow_nan=False))
+    return m.SpeedRestrictionMessage(
+        vehicle_id=draw(vehicle_ids), restriction_id=draw(st.from_regex(r"[a-z0-9_.:-]{1,64}",
+                                                                         fullmatch=True)),
+        line_id=draw(names), start_m=start,
+        end_m=start + draw(st.floats(0.5, 1e5, allow_nan=False)),
+        speed_mps=draw(st.none() | st.floats(0.1, 100.0, allow_nan=False)),
+    )  # fmt: skip
+
+
 STRATEGIES: dict[type[m.Message], st.SearchStrategy[Any]] = {
     m.StatusReport: status_reports,
     m.Event: events,
@@ -226,4 +239,5 @@ STRATEGIES: dict[type[m.Message], st.SearchStrategy[Any]] = {
     m.MovementAuthorityRequest: movement_authority_requests,
     m.MovementAuthorityReply: movement_authority_replies,
     m.MovementAuthorityAck: movement_authority_acks,
+    m.SpeedRestrictionMessage: speed_restriction_messages(),
 }

@@ -36,6 +36,8 @@ JOURNEY = {
     ],
 }  # fmt: skip
 MA = {"line_id": "bologna-ring", "start_m": 100.0, "end_of_authority_m": 900.0}
+TSR = {"id": "works", "line_id": "bologna-ring", "start_m": 4000.0, "end_m": 4200.0,
+       "speed_kmh": 30.0}  # fmt: skip
 
 
 @pytest.fixture(
@@ -116,6 +118,10 @@ RULES: dict[tuple[str, str], Rule] = {
     ("POST", "/api/v1/rbc/{vehicle_id}/ma/shorten"): Rule(
         "admin", json=lambda: {"end_of_authority_m": 800.0}, prepare=_issue_ma
     ),
+    ("POST", "/api/v1/rbc/{vehicle_id}/tsr"): Rule("admin", 201, json=lambda: TSR),
+    ("DELETE", "/api/v1/rbc/{vehicle_id}/tsr/{restriction_id}"): Rule(
+        "admin", params={"line_id": "bologna-ring", "start_m": 4000.0, "end_m": 4200.0}
+    ),
     ("GET", "/api/v1/audit"): Rule("admin"),
 } | {
     ("POST", f"/api/v1/vehicles/{{vehicle_id}}/{name}"): Rule(
@@ -125,7 +131,8 @@ RULES: dict[tuple[str, str], Rule] = {
 }
 PUBLIC = {("POST", "/api/v1/auth/token"), ("GET", "/healthz")}
 RANK = {"observer": 1, "driver": 2, "other_driver": 2, "admin": 3}
-PATH_VALUES = {"vehicle_id": "URV1", "line_id": "bologna-ring", "journey_id": "matrix"}
+PATH_VALUES = {"vehicle_id": "URV1", "line_id": "bologna-ring", "journey_id": "matrix",
+               "restriction_id": "works"}  # fmt: skip
 
 
 def _expected(rule: Rule, principal: str, path: str) -> int | tuple[int, ...]:

@@ -168,3 +168,57 @@ def revoke_movement_authority(
         message = rbc.revoke(vehicle_id)
     _audited(user, message)
     return _public(rbc, message)
+
+
+class SpeedRestrictionIssue(BaseModel):
+    """A temporary speed restriction to put in force on the vehicle's line."""
+
+    model_config = {"extra": "forbid"}
+
+    id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.:-]+$")
+    line_id: str = Field(min_length=1, max_length=64)
+    start_m: float = Field(ge=0.0, allow_inf_nan=False, description="Start, chainage [m]")
+    end_m: float = Field(gt=0.0, allow_inf_nan=False, description="End, chainage [m]")
+    speed_kmh: float = Field(gt=0.0, le=360.0, allow_inf_nan=False, description="Limit [km/h]")
+
+
+def _restriction(
+    vehicle_id: str, restriction_id: str, line_id: str, start_m: float, end_m: float,
+    speed_mps: float | None,
+) -> m.SpeedRestrictionMessage:  # fmt: skip
+    try:
+        return m.SpeedRestrictionMessage(
+            vehicle_id=vehicle_id, restriction_id=restriction_id, line_id=line_id,
+            start_m=start_m, end_m=end_m, speed_mps=speed_mps,
+        )  # fmt: skip
+    except ValueError as exc:
+        detail = {"message": "not a speed restriction", "problems": [str(exc)]}
+        raise HTTPException(status_code=422, detail=detail) from exc
+
+
+@router.post("/{vehicle_id}/tsr", status_code=status.HTTP_201_CREATED, responses=REFUSED)
+def issue_speed_restriction(
+    vehicle_id: VehiclePath, body: SpeedRestrictionIssue, rbc: RbcDep, user: AdminUser
+) -> m.SpeedRestrictionMessage:
+    """Send a temporary speed restriction to the vehicle (admin only)."""
+    message = _restriction(vehicle_id, body.id, body.line_id, body.start_m, body.end_m,
+                           body.speed_kmh / 3.6)  # fmt: skip
+    with _rbc_errors():
+        rbc.restrict_speed(vehicle_id, message)
+    _audit.info("user=%s action=rbc.tsr vehicle=%s tsr=%s %g..%g m %g km/h", user.username,
+                vehicle_id, body.id, body.start_m, body.end_m, body.speed_kmh)  # fmt: skip
+    return message
+
+
+@router.delete("/{vehicle_id}/tsr/{restriction_id}", responses=REFUSED)
+def revoke_speed_restriction(
+    vehicle_id: VehiclePath, restriction_id: Annotated[str, Path(max_length=64)],
+    line_id: str, start_m: float, end_m: float, rbc: RbcDep, user: AdminUser,
+) -> m.SpeedRestrictionMessage:  # fmt: skip
+    """Revoke a temporary speed restriction on the vehicle (admin only)."""
+    message = _restriction(vehicle_id, restriction_id, line_id, start_m, end_m, None)
+    with _rbc_errors():
+        rbc.restrict_speed(vehicle_id, message)
+    _audit.info("user=%s action=rbc.tsr_revoked vehicle=%s tsr=%s", user.username, vehicle_id,
+                restriction_id)  # fmt: skip
+    return message
