@@ -74,6 +74,9 @@ BARRIER_S = 10.0
 """Lockstep: the longest wall time a status report waits for its acknowledgement. Long, so that a
 loaded machine never changes a run; the wait ends at once when the trackside's liveliness token
 goes, and is not made again until a session is established anew."""
+RETRANSMIT_S = 2.0
+"""Lockstep: after this long without an acknowledgement [s of wall time] the report is sent
+once more (a report lost on the way would otherwise cost the session)."""
 
 
 @dataclass(frozen=True)
@@ -179,11 +182,15 @@ class OnboardNode:
         self.commands_rejected = 0
 
         chunks = {"vehicle": self.vehicle_id}
-        self._status = TypedPublisher(session, STATUS, **chunks)
-        self._events = TypedPublisher(session, EVENT, **chunks)
+        # In lockstep each report in a session waits for its acknowledgement: it must not be
+        # dropped under congestion, as a latest-value topic otherwise is.
+        self._status = TypedPublisher(session, STATUS, block=self.lockstep, vehicle=self.vehicle_id)
+        self._last_report: m.StatusReport | None = None
+        self.report_retransmissions = 0
+        self._events = TypedPublisher(session, EVENT, vehicle=self.vehicle_id)
         self._commands = TypedQueryable(session, COMMAND, self._on_command, **chunks)
         self._journeys = TypedSubscriber(session, JOURNEY_PROFILE, vehicle=self.vehicle_id)
-        self._journey_acks = TypedPublisher(session, JOURNEY_PROFILE_ACK, **chunks)
+        self._journey_acks = TypedPublisher(session, JOURNEY_PROFILE_ACK, vehicle=self.vehicle_id)
         self._status_acks = TypedSubscriber(session, STATUS_ACK, vehicle=self.vehicle_id)
         self._status_acked = threading.Event()
         self._ack_pending = False
@@ -194,7 +201,9 @@ class OnboardNode:
             vehicle=self.vehicle_id,
         )
         self._terminations = TypedSubscriber(session, SESSION_TERMINATION, vehicle=self.vehicle_id)
-        self._termination_out = TypedPublisher(session, SESSION_TERMINATION, **chunks)
+        self._termination_out = TypedPublisher(
+            session, SESSION_TERMINATION, vehicle=self.vehicle_id
+        )
         self._authorities = TypedSubscriber(session, MOVEMENT_AUTHORITY, vehicle=self.vehicle_id)
         self._restrictions = TypedSubscriber(session, SPEED_RESTRICTION, vehicle=self.vehicle_id)
         self._line_version: m.LineVersionReply | None = None
@@ -493,16 +502,29 @@ class OnboardNode:
             # Lockstep: the previous report's acknowledgement is taken at this tick, one status
             # period after the report, however fast it came back (it had that long to come).
             self._ack_pending = False
-            if self._barrier_armed and self._status_acked.wait(BARRIER_S):
+            if self._barrier_armed and self._await_status_ack():
                 self._task_session(now_ns)
             if not self._status_acked.is_set():
                 self.barrier_misses += 1
         if not client.status_due(now_ns / NS_PER_S, self._status_seq):
             return
         self._status_acked.clear()
-        self._status.put(self.status(now_ns))
+        self._last_report = self.status(now_ns)
+        self._status.put(self._last_report)
         self._status_seq += 1
         self._ack_pending = self.lockstep and client.established
+
+    def _await_status_ack(self) -> bool:
+        """Lockstep barrier: wait for the last report's acknowledgement; if none came within
+        :data:`RETRANSMIT_S`, send the report once more (same ``seq``: the trackside counts a
+        duplicate as stale) and wait the rest of :data:`BARRIER_S`."""
+        if self._status_acked.wait(RETRANSMIT_S):
+            return True
+        if not self._barrier_armed or self._last_report is None:
+            return False
+        self._status.put(self._last_report)
+        self.report_retransmissions += 1
+        return self._status_acked.wait(BARRIER_S - RETRANSMIT_S)
 
     @property
     def inputs_received(self) -> tuple[int, int, int]:

@@ -124,12 +124,16 @@ class TopicMonitor:
 class TypedPublisher(Generic[T]):
     """Publishes one topic's messages on one concrete key."""
 
-    def __init__(self, session: zenoh.Session, topic: Topic[T], **chunks: str) -> None:
+    def __init__(
+        self, session: zenoh.Session, topic: Topic[T], *, block: bool = False, **chunks: str
+    ) -> None:
+        """``block``: wait for room in the transmission queue even on a ``LATEST`` topic (which
+        otherwise drops under congestion), for a publisher that paces itself on the answers."""
         if topic.delivery is Delivery.QUERY:
             raise ProtocolError(f"{topic.name} is a query topic; use request()")
         self.topic = topic
         self.key = topic.key(**chunks)
-        latest = topic.delivery is Delivery.LATEST
+        latest = topic.delivery is Delivery.LATEST and not block
         try:
             self._publisher = session.declare_publisher(
                 self.key,

@@ -673,6 +673,9 @@ class _Stack:
             sensor_lost_s=dict(recorder.sensor_lost_s),
             odometer_failure_detection_s=self._odometer_detection_s(),
             lockstep_barrier_misses=node.barrier_misses if self.options.fast else None,
+            lockstep_report_retransmissions=(
+                node.report_retransmissions if self.options.fast else None
+            ),
         )  # fmt: skip
         kpis["actions"] = [vars(item) for item in self.actions]
         expectations = check_expectations(kpis, self.spec.expect)
