@@ -27,6 +27,18 @@ POLICY_VIOLATION = 1008
 HEARTBEAT_S = 1.0
 
 
+async def _accept(websocket: WebSocket) -> bool:
+    """Accept the socket if its ``token`` query parameter is a valid login; else close it with
+    a policy violation (the console then stops reconnecting) and say so."""
+    factory: sessionmaker[Session] = websocket.app.state.session_factory
+    token = websocket.query_params.get("token")
+    if not await asyncio.to_thread(_authorised, factory, token):
+        await websocket.close(code=POLICY_VIOLATION, reason="not authenticated")
+        return False
+    await websocket.accept()
+    return True
+
+
 def _authorised(factory: sessionmaker[Session], token: str | None) -> bool:
     if not token:
         return False
@@ -42,12 +54,9 @@ def _authorised(factory: sessionmaker[Session], token: str | None) -> bool:
 async def fleet_stream(websocket: WebSocket) -> None:
     """Push the fleet (as in ``GET /vehicles``) on every change, at most every push period."""
     app = websocket.app
-    factory: sessionmaker[Session] = app.state.session_factory
-    token = websocket.query_params.get("token")
-    if not await asyncio.to_thread(_authorised, factory, token):
-        await websocket.close(code=POLICY_VIOLATION, reason="not authenticated")
+    if not await _accept(websocket):
         return
-    await websocket.accept()
+    factory: sessionmaker[Session] = app.state.session_factory
     bridge: ZenohBridge = app.state.bridge
     operator: SimulatedOperatorThread | None = app.state.simulated_operator
     simulated = frozenset() if operator is None else operator.operator.vehicles
@@ -96,12 +105,9 @@ def _holder(factory: sessionmaker[Session], vehicle_id: str) -> str | None:
 async def vehicle_stream(websocket: WebSocket, vehicle_id: str) -> None:
     """Push the vehicle's status (newest only) and its events as they come."""
     app = websocket.app
-    factory: sessionmaker[Session] = app.state.session_factory
-    token = websocket.query_params.get("token")
-    if not await asyncio.to_thread(_authorised, factory, token):
-        await websocket.close(code=POLICY_VIOLATION, reason="not authenticated")
+    if not await _accept(websocket):
         return
-    await websocket.accept()
+    factory: sessionmaker[Session] = app.state.session_factory
     hub: LiveHub = app.state.live
     operator: SimulatedOperatorThread | None = app.state.simulated_operator
     simulated = operator is not None and vehicle_id in operator.operator.vehicles
