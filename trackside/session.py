@@ -81,7 +81,9 @@ class SessionManager:
         if report.seq <= session.last_seq:
             self.stale_reports += 1
             return None
-        if now_s - session.last_report_s > self.response_timeout_s:
+        # The gap is measured from the session's first report on: the handshake's own time is
+        # only the vehicle's last report seen before it, which may be older than the handshake.
+        if session.reports and now_s - session.last_report_s > self.response_timeout_s:
             # Reports stopped for longer than the timeout, in the vehicle's own time: the session
             # lapsed meanwhile. Not acknowledged, the onboard loses it too and shakes hands again.
             del self.sessions[report.vehicle_id]
