@@ -131,22 +131,38 @@ def _finite_max(values: np.ndarray | None) -> float | None:
 
 RANGE_EXTENDER_SETTLE_S = 120.0
 """The range extender's power is averaged from this long after the SOC's minimum [s]."""
+CRUISE_TOLERANCE_MPS = 1.0 / KMH_PER_MPS
+"""The cruise starts when the speed first comes this close to the run's highest reference."""
+
+
+def _cruise_start_time_s(columns: Mapping[str, np.ndarray]) -> float | None:
+    """When the speed first reaches the run's highest reference speed less 1 km/h [s]."""
+    references = columns["reference_speed_mps"]
+    finite = np.isfinite(references)
+    if not finite.any():
+        return None
+    reached = columns["speed_mps"] >= references[finite].max() - CRUISE_TOLERANCE_MPS
+    return float(columns["time_s"][np.argmax(reached)]) if reached.any() else None
 
 
 def _energy_kpis(columns: Mapping[str, np.ndarray]) -> dict[str, float | None]:
-    """Seed 003 §7: the SOC's minimum and when, the range extender's power after it, the SOC
-    at the end; None on plants without a powertrain."""
+    """Seed 003 §7: the SOC's minimum and when (from the start, and from the cruise's start,
+    as the seed's missions start at speed), the range extender's power after it, the SOC at
+    the end; None on plants without a powertrain."""
     soc, times = columns["soc"], columns["time_s"]
     if soc.size == 0 or not np.isfinite(soc).all():
         return {"soc_end": None, "soc_min": None, "soc_min_time_s": None,
+                "soc_min_time_from_cruise_s": None,
                 "range_extender_kw_after_soc_min": None}  # fmt: skip
     lowest = int(np.argmin(soc))
     after = times > times[lowest] + RANGE_EXTENDER_SETTLE_S
     extender = columns["range_extender_kw"][after]
+    cruise_s = _cruise_start_time_s(columns)
     return {
         "soc_end": float(soc[-1]),
         "soc_min": float(soc[lowest]),
         "soc_min_time_s": float(times[lowest]),
+        "soc_min_time_from_cruise_s": None if cruise_s is None else float(times[lowest]) - cruise_s,
         "range_extender_kw_after_soc_min": float(extender.mean()) if extender.size else None,
     }
 

@@ -36,6 +36,7 @@ import numpy as np
 import zenoh
 from fastapi.testclient import TestClient
 
+from deploy.link_proxy import LinkProxy
 from deploy.ports import loopback_endpoint
 from deploy.scenario.conditions import State
 from deploy.scenario.kpis import RunCounters, check_expectations, compute_kpis
@@ -56,8 +57,11 @@ from deploy.scenario.schema import (
     TracksideRestart,
     UdpLinkFault,
     VigilanceAbsent,
+    ZenohLinkLoss,
 )
 from deploy.scenario.telemetry import TelemetryRecorder
+from deploy.scenario.zenoh_link import ZenohLinkFault
+from onboard.ato_ob.transitions import Trigger
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.plant.sensors import SensorFaults, TimeWindow
 from onboard.runtime import RealTimeClock, SimClock
@@ -83,12 +87,14 @@ JOURNEY_TIMEOUT_S = 10.0
 """How long the operator waits for the vehicle's journey acknowledgement [s, simulated]."""
 WAIT_S = 10.0
 """How long, in wall time, a message sent to the vehicle may take to reach it [s]."""
+LINK_WAIT_S = 15.0
+"""How long, in wall time, the sessions may take to notice a cut or a restored link [s]."""
 OBSTACLE_MARGIN_M = 20.0
 """The RBC ends the MA this far before a reported obstacle [m]."""
 WHOLE_STACK_FAULTS = (AtoFailure, FrictionDrop, Obstacle, OdometerFailure, RelayFault,
                       SensorDropout, ShortenedAuthority, TachometerFault,
                       TemporarySpeedRestriction, TracksideRestart, UdpLinkFault,
-                      VigilanceAbsent)  # fmt: skip
+                      VigilanceAbsent, ZenohLinkLoss)  # fmt: skip
 """The faults a whole-stack run injects (docs/scenarios.md)."""
 
 
@@ -231,9 +237,10 @@ class _Stack:
 
     def __init__(
         self, spec: ScenarioSpec, options: RunOptions, seed: int, scratch: Path,
-        trackside_zenoh: zenoh.Session, node: OnboardNode,
+        trackside_zenoh: zenoh.Session, node: OnboardNode, link: ZenohLinkFault | None = None,
     ) -> None:  # fmt: skip
         self.spec, self.options, self.seed = spec, options, seed
+        self.link = link
         self.trackside_zenoh = trackside_zenoh
         simulated = (spec.vehicle.id,) if spec.operator.simulated else ()
         self.settings = Settings(
@@ -261,6 +268,9 @@ class _Stack:
         self._armed_s = 0.0
         self._done: set[int] = set()
         """The one-shot faults already injected (by index)."""
+        self._session_up = False
+        self.session_outages: list[dict[str, float | None]] = []
+        """Each loss of an established session: when [s], and when one was established again."""
 
     @classmethod
     @contextmanager
@@ -277,9 +287,21 @@ class _Stack:
             trackside_zenoh = stack.enter_context(
                 open_session(ZenohSettings(mode="peer", connect=(), listen=(endpoint,)))
             )
+            # With a link fault the onboard reaches the trackside through a proxy that can cut
+            # the link (closed after the sessions: the ExitStack unwinds in reverse).
+            proxy = None
+            connect = endpoint
+            if any(isinstance(f, ZenohLinkLoss) for f in spec.faults):
+                proxy = stack.enter_context(LinkProxy.to_endpoint(endpoint))
+                connect = ZenohLinkFault.connect_endpoint(proxy)
             onboard_zenoh = stack.enter_context(
-                open_session(ZenohSettings(mode="peer", connect=(endpoint,)))
+                open_session(ZenohSettings(mode="peer", connect=(connect,)))
             )
+            link = None
+            if proxy is not None:
+                link = ZenohLinkFault(proxy, onboard=onboard_zenoh, trackside=trackside_zenoh,
+                                      vehicle_id=spec.vehicle.id)  # fmt: skip
+                stack.callback(link.close)
             vehicle = spec.vehicle
             clock = SimClock() if options.fast else RealTimeClock(options.speed)
             node = OnboardNode(
@@ -293,7 +315,7 @@ class _Stack:
                 session=onboard_zenoh, clock=clock, track_map=TrackMap(load_seed_line(spec.line)),
             )  # fmt: skip
             stack.callback(node.close)
-            run = cls(spec, options, seed, scratch, trackside_zenoh, node)
+            run = cls(spec, options, seed, scratch, trackside_zenoh, node, link)
             run.start_trackside()
             stack.callback(run.stop_trackside)
             yield run
@@ -349,6 +371,7 @@ class _Stack:
                 break
             self._answer_vc()
             self._run(min(SLICE_S, spec.duration_s - node.clock.now_s))
+            self._watch_session()
             if progress is not None:
                 progress(self._progress())
         if self._next_action < len(spec.actions):
@@ -358,6 +381,22 @@ class _Stack:
 
     def _run(self, duration_s: float) -> None:
         self.node.run(duration_s)
+
+    def _watch_session(self) -> None:
+        """Note each loss of the established session and its re-establishment (to the slice)."""
+        established = self.node.session_client.established
+        if established == self._session_up:
+            return
+        self._session_up = established
+        now_s = round(self.node.clock.now_s, 6)
+        if not established:
+            self.session_outages.append({"lost_s": now_s, "reestablished_s": None,
+                                         "duration_s": None})  # fmt: skip
+        elif self.session_outages and self.session_outages[-1]["reestablished_s"] is None:
+            outage = self.session_outages[-1]
+            lost_s = outage["lost_s"]
+            assert lost_s is not None
+            outage.update(reestablished_s=now_s, duration_s=round(now_s - lost_s, 6))
 
     def _progress(self) -> Progress:
         stack = self.node.stack
@@ -398,9 +437,13 @@ class _Stack:
         present = self.spec.operator.simulated
         internal_fault = False
         adhesion = 1.0
+        link_lost: ZenohLinkLoss | None = None
         for index, fault in enumerate(self.spec.faults):
             if isinstance(fault, VigilanceAbsent):
                 present &= not fault.start_s <= now_s < fault.end_s
+            elif isinstance(fault, ZenohLinkLoss):
+                if link_lost is None and fault.start_s <= now_s < fault.end_s:
+                    link_lost = fault
             elif isinstance(fault, AtoFailure):
                 active = fault.start_s <= now_s < fault.end_s
                 if active and not self.node.stack.internal_fault and not internal_fault:
@@ -417,10 +460,33 @@ class _Stack:
                 if index not in self._done and now_s >= fault.at_s:
                     self._done.add(index)
                     self._speed_restriction(f"tsr-{index + 1}", fault)
-        self.operator_present = present
+        self._zenoh_link(link_lost)
+        # The operator at the console sees the vehicle only over the link, and answers through it.
+        self.operator_present = present and link_lost is None
         self.node.stack.internal_fault = internal_fault
         if isinstance(self.node.plant, BogieVehicle):
             self.node.plant.adhesion_factor = adhesion
+
+    def _zenoh_link(self, lost: ZenohLinkLoss | None) -> None:
+        """Cut the onboard ↔ trackside link when a window opens, restore it when none is open;
+        the simulation stands still, in wall time, until both sides have seen the change."""
+        link = self.link
+        if link is None or link.up == (lost is None):
+            return
+        now_s = self.node.clock.now_s
+        if lost is not None:
+            # The acknowledgement of the report in flight arrives first, however slow the wire:
+            # the loss then starts at this tick in every run.
+            if not _wait(lambda: not self.node.status_ack_outstanding):
+                raise ScenarioRunError("the status acknowledgement before the cut never came")
+            if not link.cut(lost.mode, timeout_s=LINK_WAIT_S):
+                raise ScenarioRunError("the sessions did not notice the lost Zenoh link")
+            self.recorder.hazards_s.append(now_s)
+            self.actions.append(_ActionLog("link.cut", now_s, True, lost.mode))
+        else:
+            if not link.restore(timeout_s=LINK_WAIT_S):
+                raise ScenarioRunError("the Zenoh link did not come back")
+            self.actions.append(_ActionLog("link.restore", now_s, True))
 
     def _inject(self, fault: Fault) -> None:
         if isinstance(fault, TracksideRestart):
@@ -676,6 +742,15 @@ class _Stack:
             lockstep_report_retransmissions=(
                 node.report_retransmissions if self.options.fast else None
             ),
+            session_losses=node.session_client.counters.lost,
+            sessions_established=node.session_client.counters.accepted,
+            session_outages=self.session_outages,
+            fallback_stops=sum(1 for t in stack.controller.transitions
+                               if t.trigger is Trigger.FALLBACK_STOP_COMPLETED),
+            zenoh_link=None if self.link is None else {
+                "cuts": self.link.proxy.stats().cuts,
+                "connections_dropped": self.link.connections_dropped,
+            },
         )  # fmt: skip
         kpis["actions"] = [vars(item) for item in self.actions]
         expectations = check_expectations(kpis, self.spec.expect)

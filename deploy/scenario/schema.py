@@ -139,7 +139,12 @@ class UdpLinkFault(_Window):
 
 
 class ZenohLinkLoss(_Window):
+    """The onboard ↔ trackside Zenoh link is lost in the window (``deploy.scenario.link_proxy``):
+    ``silent``, a link gone quiet that each side notices by its lease; ``reset``, connections
+    torn down at once."""
+
     kind: Literal["zenoh_link_loss"]
+    mode: Literal["silent", "reset"] = "silent"
 
 
 class AtoFailure(_Window):

@@ -400,8 +400,10 @@ class DrivingFunction:
         self._update_served(position_m, speed_mps)
         u_rd = 0.0
         if self.sc.needs_remote:
-            target = min(self.remote_target_mps or 0.0, self.permitted_speed_mps,
-                         self.track_map.mrsp_mps(self.track_map.normalise(position_m)))  # fmt: skip
+            # Under the ceilings by the plans' margin: a target on the MRSP is overshot.
+            mrsp = self.track_map.mrsp_mps(self.track_map.normalise(position_m))
+            ceiling = min(self.permitted_speed_mps, mrsp)
+            target = min(self.remote_target_mps or 0.0, ceiling - MRSP_MARGIN_MPS)
             u_rd = self.rd.step(
                 self.control_s, target_speed_mps=max(target, 0.0), speed_mps=speed_mps,
                 gradient_permille=gradient_permille, force_limits_n=force_limits_n,

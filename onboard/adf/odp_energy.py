@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -94,6 +94,15 @@ class ProfileLeg:
     holding_speed_mps: float
     braking_onset_mps: float
     traction_energy_j: float
+    _lists: tuple[list[float], list[float], list[float]] = field(
+        init=False, repr=False, compare=False
+    )
+    """The three series as Python floats: :meth:`at` runs some 100 times per control step, and
+    bisecting or indexing an array makes a NumPy scalar per access (the values are the same)."""
+
+    def __post_init__(self) -> None:
+        lists = (self.distances_m.tolist(), self.speeds_mps.tolist(), self.times_s.tolist())
+        object.__setattr__(self, "_lists", lists)
 
     @property
     def distance_m(self) -> float:
@@ -109,15 +118,15 @@ class ProfileLeg:
 
     def at(self, t_s: float) -> tuple[float, float]:
         """(distance [m], speed [m/s]) at ``t_s`` from the leg's start, clamped to the leg."""
-        times = self.times_s
-        t = min(max(t_s, 0.0), float(times[-1]))
+        distances, speeds, times = self._lists
+        t = min(max(t_s, 0.0), times[-1])
         index = min(max(bisect.bisect_right(times, t) - 1, 0), len(times) - 2)
-        t0, t1 = float(times[index]), float(times[index + 1])
-        v0, v1 = float(self.speeds_mps[index]), float(self.speeds_mps[index + 1])
+        t0, t1 = times[index], times[index + 1]
+        v0, v1 = speeds[index], speeds[index + 1]
         tau = t - t0
         acceleration = (v1 - v0) / (t1 - t0) if t1 > t0 else 0.0
-        s = float(self.distances_m[index]) + v0 * tau + 0.5 * acceleration * tau * tau
-        return min(s, float(self.distances_m[index + 1])), v0 + acceleration * tau
+        s = distances[index] + v0 * tau + 0.5 * acceleration * tau * tau
+        return min(s, distances[index + 1]), v0 + acceleration * tau
 
 
 class LegTrack:

@@ -5,8 +5,10 @@
 The gains come from a table over the scheduling variable σ = v_ref, interpolated linearly and
 held at the ends. The reference speed ramps towards the operator's target at a comfortable
 acceleration, so the controller follows a manoeuvre rather than a step; ᾱ is the gradient at
-the reference position. Integration stops while u saturates (anti-windup). :meth:`align` makes
-the controller's output equal a given force, for a bumpless hand-over from the AD controller.
+the reference position. Integration stops while u saturates, and while the speed lags the
+reference by more than a band (anti-windup: the lag of a power-limited climb to the target is
+not stored, to come out as an overshoot). :meth:`align` makes the controller's output equal a
+given force, for a bumpless hand-over from the AD controller.
 """
 
 from __future__ import annotations
@@ -45,6 +47,10 @@ class RemoteDrivingGains:
     table: tuple[GainPoint, ...] = DEFAULT_GAIN_TABLE
     reference_acceleration_mps2: float = 0.5
     reference_deceleration_mps2: float = 0.6
+    integration_band_mps: float = 0.5
+    """The integral acts only while the speed is within this band of the reference: the lag
+    behind a ramp the vehicle cannot follow (power-limited) is not stored, to be paid back as
+    an overshoot of the target."""
 
     def at(self, reference_speed_mps: float) -> tuple[float, float, float]:
         """(k_p, k_i, k_d) at v_ref, interpolated linearly in the table."""
@@ -133,7 +139,7 @@ class RemoteDrivingController:
             + self.feedforward_n(gradient_permille)
         )
         low, high = force_limits_n
-        if low < demand < high:
+        if low < demand < high and abs(error) <= g.integration_band_mps:
             self._integral = candidate_integral
         if target_speed_mps == 0.0 and self.reference_speed_mps == 0.0 and speed_mps < 0.05:
             self._integral = 0.0

@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -119,9 +120,15 @@ def dv_warning_mps(v_mrsp_mps: float, fixed: FixedValues = FIXED_VALUES) -> floa
     )
 
 
+_URA_MIN_MPS, _URA_MAX_MPS = 2.0 * KMH, 12.0 * KMH
+_URA_FROM_MPS, _URA_TO_MPS = 30.0 * KMH, 500.0 * KMH
+_URA_SLOPE = (_URA_MAX_MPS - _URA_MIN_MPS) / (_URA_TO_MPS - _URA_FROM_MPS)
+"""V_ura's line, computed as :func:`ceiling_margin_mps` computes it (same operations, same bits)."""
+
+
 def speed_measurement_accuracy_mps(speed_mps: float) -> float:
     """V_ura [m/s]: 2 km/h up to 30 km/h, linear to 12 km/h at 500 km/h, 12 km/h above."""
-    return ceiling_margin_mps(speed_mps, 2.0 * KMH, 12.0 * KMH, 30.0 * KMH, 500.0 * KMH)
+    return ceiling_margin_mps(speed_mps, _URA_MIN_MPS, _URA_MAX_MPS, _URA_FROM_MPS, _URA_TO_MPS)
 
 
 class BrakingCurve:
@@ -396,21 +403,93 @@ class TargetLimits:
             raise EtcsInputError(f"distance {distance_m} m and acceleration must be finite")
         if limit is Limit.EBD or limit is Limit.SBD:
             return self.curve.speed_mps(distance_m)
-        if self._limit_m(limit, 0.0, acceleration_mps2) > distance_m:
+        limit_m = self._limit_function(limit, acceleration_mps2)
+        if limit_m(0.0) > distance_m:
             return 0.0
         low, high = 0.0, _SPEED_SEARCH_MPS
-        while self._limit_m(limit, high, acceleration_mps2) <= distance_m:
+        while limit_m(high) <= distance_m:
             low, high = high, 2.0 * high
             if high > _SPEED_SEARCH_MAX_MPS:
                 return low
         # Every limit's distance grows with the speed: bisect for the crossing.
         while high - low > SPEED_TOLERANCE_MPS:
             middle = 0.5 * (low + high)
-            if self._limit_m(limit, middle, acceleration_mps2) > distance_m:
+            if limit_m(middle) > distance_m:
                 high = middle
             else:
                 low = middle
         return low
+
+    def _limit_function(self, limit: Limit, acceleration_mps2: float) -> Callable[[float], float]:
+        """``v ↦ _limit_m(limit, v, acceleration_mps2)`` for the bisection of :meth:`speed_mps`.
+
+        The bisection evaluates a limit some 30 times per call, several times per supervision
+        cycle: this is the same arithmetic, operation for operation (so the same bits), with
+        what does not depend on the speed worked out once and the calls inlined. ``max(a, b)``
+        is written ``b if b > a else a`` and ``min(a, b)`` ``b if b < a else a``, as the
+        built-ins choose. A test checks it against :meth:`_limit_m`.
+        """
+        t = self.times
+        curve = self.curve
+        squares, bands, decelerations = curve._squares, curve._bands_m, curve._decelerations
+        first_square = squares[0]
+        beyond_twice = 2.0 * curve._beyond_mps2
+        right = bisect.bisect_right
+
+        def curve_distance_m(speed_mps: float) -> float:  # BrakingCurve.distance_m
+            square = speed_mps * speed_mps
+            if square < first_square:
+                return -(first_square - square) / beyond_twice
+            k = right(squares, square) - 1
+            return bands[k] + (square - squares[k]) / (2.0 * decelerations[k])
+
+        if not self.target.ebd_based:
+            t_bs1 = t.t_bs1_s
+
+            def service_m(v: float) -> float:
+                return curve_distance_m(v) + v * t_bs1
+
+        else:
+            v_target = self.target.speed_mps
+            a_est1 = 0.0 if 0.0 > acceleration_mps2 else acceleration_mps2
+            a_est2 = self._a_est2_max if self._a_est2_max < a_est1 else a_est1
+            t_traction, t_berem, t_bs2 = t.t_traction_s, t.t_berem_s, t.t_bs2_s
+            v_delta1 = a_est1 * t_traction
+            v_delta2 = a_est2 * t_berem
+            half_delta1, half_delta2 = v_delta1 / 2.0, v_delta2 / 2.0
+            compensated = self._accuracy_compensated
+
+            def emergency_m(v: float) -> float:  # _emergency_intervention_m
+                if not compensated:
+                    v_delta0 = 0.0
+                elif v <= _URA_FROM_MPS:
+                    v_delta0 = _URA_MIN_MPS
+                else:
+                    ura = _URA_MIN_MPS + _URA_SLOPE * (v - _URA_FROM_MPS)
+                    v_delta0 = _URA_MAX_MPS if _URA_MAX_MPS < ura else ura
+                fastest = v + v_delta0 + v_delta1
+                fastest = v_target if v_target > fastest else fastest
+                traction = v + v_delta0 + half_delta1
+                traction = v_target if v_target > traction else traction
+                d_bec = traction * t_traction + (fastest + half_delta2) * t_berem
+                return curve_distance_m(fastest + v_delta2) + d_bec
+
+            if limit is Limit.EBI:
+                return emergency_m
+
+            def service_m(v: float) -> float:
+                return emergency_m(v) + v * t_bs2
+
+        if limit is Limit.SBI1 or limit is Limit.SBI2:
+            return service_m
+        if limit is Limit.WARNING:
+            t_warning = t.t_warning_s
+            return lambda v: service_m(v) + v * t_warning
+        t_driver = t.t_driver_s
+        if limit is Limit.PERMITTED:
+            return lambda v: service_m(v) + v * t_driver
+        t_indication = t.t_indication_s
+        return lambda v: service_m(v) + v * t_driver + v * t_indication
 
     def _check_limit(self, limit: Limit) -> None:
         if limit not in self.limits:

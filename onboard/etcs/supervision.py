@@ -30,6 +30,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
+from functools import cached_property
 
 from onboard.etcs.braking import (
     Limit,
@@ -216,6 +217,12 @@ class SupervisionResult:
         """The speed at which supervision would intervene now [m/s]: the ceiling's EBI speed,
         each target's EBI (SBI1 for the EoA, which has no EBI) at the front end, the release
         speed (a status value: not used by the supervision itself)."""
+        return self._intervention_speed_mps
+
+    @cached_property
+    def _intervention_speed_mps(self) -> float:
+        # Worked out once per result: the status report and the operator both ask for it
+        # between two supervision cycles, and each answer is a bisection per target.
         speed = self.ceiling_intervention_mps
         for limits, distance_m, acceleration_mps2 in self.intervention_targets:
             limit = Limit.EBI if Limit.EBI in limits.limits else Limit.SBI1

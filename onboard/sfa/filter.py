@@ -41,6 +41,8 @@ __all__ = [
 
 FloatArray = npt.NDArray[np.float64]
 
+MATRIX_CACHE_SIZE = 256
+"""Prediction steps whose matrices are kept (the cache starts again when full)."""
 _ODO_H = np.array([[0.0, 1.0, 0.0]])
 _POSITION_H = np.array([[1.0, 0.0, 0.0]])
 
@@ -128,6 +130,9 @@ class TrackKalmanFilter:
         self.rejected = {"odometer": 0, "gps": 0}
         self.accepted = {"odometer": 0, "gps": 0, "fix": 0}
         self._matrices_dt_s = -1.0
+        # The matrices by step: epochs are STROBE + k / rate, so their differences take a few
+        # dozen float values around the IMU period, not one; each is worked out once.
+        self._matrices: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
         self._transition = np.eye(3)
         self._transition_t = np.eye(3)
         self._process = np.zeros((3, 3))
@@ -204,12 +209,14 @@ class TrackKalmanFilter:
     def predict(self, dt_s: float, input_mps2: float) -> None:
         """One prediction over ``dt_s`` [s] with the along-track input [m/s²] (fast path)."""
         if dt_s != self._matrices_dt_s:
-            transition, _, process = transition_matrices(dt_s, self.config)
-            self._transition, self._transition_t, self._process = (
-                transition,
-                transition.T.copy(),
-                process,
-            )
+            matrices = self._matrices.get(dt_s)
+            if matrices is None:
+                if len(self._matrices) >= MATRIX_CACHE_SIZE:
+                    self._matrices.clear()
+                transition, _, process = transition_matrices(dt_s, self.config)
+                matrices = (transition, transition.T.copy(), process)
+                self._matrices[dt_s] = matrices
+            self._transition, self._transition_t, self._process = matrices
             self._matrices_dt_s = dt_s
         x = self.kf.x
         position, speed, bias = float(x[0, 0]), float(x[1, 0]), float(x[2, 0])

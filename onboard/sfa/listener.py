@@ -152,7 +152,7 @@ class ListenerCore:
         if self.stopped:
             self.counters.dropped["after_stop"] += 1
             return []
-        if not all(math.isfinite(value) for value in packet.doubles):
+        if not all(map(math.isfinite, packet.doubles)):
             self.counters.dropped["non_finite"] += 1
             return []
         if not plausible(packet, self.track_map.length_m):

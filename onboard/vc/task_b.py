@@ -134,6 +134,10 @@ class TaskB:
         self._previous_live: frozenset[EbCondition] = frozenset()
         self._eb_conditions: set[EbCondition] = set()
         self._decay_reasons: list[DecayReason] = []
+        # What the status carries of the two: rebuilt only when they change (reasons are only
+        # ever appended), not in every 2 ms cycle.
+        self._eb_conditions_published: frozenset[EbCondition] = frozenset()
+        self._decay_reasons_published: tuple[DecayReason, ...] = ()
         self._last_balise_header: TelegramHeader | None = None
         # Conditions found this cycle, with their evidence time.
         self._found: dict[EbCondition, float] = {}
@@ -197,12 +201,15 @@ class TaskB:
                     self._vigilance_deadline_s = None
 
     def _check_deadlines(self, now_s: float) -> None:
-        for key, outstanding in list(self._outstanding.items()):
-            if now_s > outstanding.deadline_s + TIME_TOLERANCE_S:
-                del self._outstanding[key]
-                self._decay(
-                    DecayReason.VITALITY_TIMEOUT, _C.CONFIRMATION_TIMEOUT, outstanding.deadline_s
-                )
+        overdue = [
+            (key, outstanding) for key, outstanding in self._outstanding.items()
+            if now_s > outstanding.deadline_s + TIME_TOLERANCE_S
+        ]  # fmt: skip
+        for key, outstanding in overdue:
+            del self._outstanding[key]
+            self._decay(
+                DecayReason.VITALITY_TIMEOUT, _C.CONFIRMATION_TIMEOUT, outstanding.deadline_s
+            )
         deadline_s = self._vigilance_deadline_s
         if deadline_s is not None and now_s > deadline_s + TIME_TOLERANCE_S:
             self._vigilance_deadline_s = None
@@ -263,6 +270,8 @@ class TaskB:
         return self._publish(now_s, odometry, isolated)
 
     def _record(self, now_s: float) -> None:
+        if not (self._found or self._found_decays or self._previous_live):
+            return  # a quiet cycle after a quiet one: no event, and nothing is live
         live = frozenset(self._found)
         for condition in sorted(live - self._previous_live):
             self.events.append(
@@ -305,37 +314,44 @@ class TaskB:
         ):
             triggers.add(Trigger.HAZARD_CLEARED_AT_STANDSTILL)
         rule = self.fsm.fire(triggers, now_s)
-        if rule is not None and rule.target is TaskBState.MONITORING:
+        if rule is not None and rule.target is TaskBState.MONITORING and self._eb_conditions:
             self._eb_conditions.clear()
-        if self.fsm.state is not TaskBState.MONITORING:
+            self._eb_conditions_published = frozenset()
+        if self.fsm.state is not TaskBState.MONITORING and not live <= self._eb_conditions:
             self._eb_conditions |= live
+            self._eb_conditions_published = frozenset(self._eb_conditions)
 
     def _publish(
         self, now_s: float, odometry: OdometryEstimate, isolated: bool
     ) -> SupervisionStatus:
-        confirmed = {
-            section: number if number == self._current[section] else None
-            for section, number in self._confirmed.items()
-        }
+        confirmed, current = self._confirmed, self._current
+
+        def number(section: Section) -> int | None:
+            value = confirmed[section]
+            return value if value == current[section] else None
+
         state = self.fsm.state
+        decay_reasons = self._decay_reasons
+        if len(decay_reasons) != len(self._decay_reasons_published):
+            self._decay_reasons_published = tuple(decay_reasons)
         status = SupervisionStatus(
             time_s=now_s,
             state=state,
             eb_flag=state is not TaskBState.MONITORING,
-            eb_conditions=frozenset(self._eb_conditions),
+            eb_conditions=self._eb_conditions_published,
             live_conditions=self._previous_live,
             system_decay=state is TaskBState.DECAYED,
-            decay_reasons=tuple(self._decay_reasons),
+            decay_reasons=self._decay_reasons_published,
             standstill=odometry.standstill,
             odometry_efficient=odometry.efficient,
             speed_mps=odometry.speed_mps,
             position_m=odometry.position_m,
             etcs_isolated=isolated,
             eb_released=self._read_eb_released(now_s),
-            vigilance_confirmed_number=confirmed[Section.OPERATOR_VIGILANCE],
-            etcs_isolation_confirmed_number=confirmed[Section.ETCS_ISOLATION_CONFIRMATION],
-            etcs_insertion_confirmed_number=confirmed[Section.ETCS_INSERTION_CONFIRMATION],
-            eb_rearm_confirmed_number=confirmed[Section.EB_REARM_CONFIRMATION],
+            vigilance_confirmed_number=number(Section.OPERATOR_VIGILANCE),
+            etcs_isolation_confirmed_number=number(Section.ETCS_ISOLATION_CONFIRMATION),
+            etcs_insertion_confirmed_number=number(Section.ETCS_INSERTION_CONFIRMATION),
+            eb_rearm_confirmed_number=number(Section.EB_REARM_CONFIRMATION),
             last_balise_header=self._last_balise_header,
         )
         self.status.post(status)

@@ -74,6 +74,7 @@ class TaskC:
         self._command_valves = command_valves
         self._command_relay = command_relay
         self._decay_reasons: list[DecayReason] = []
+        self._decay_reasons_published: tuple[DecayReason, ...] = ()
         self._switch_started_s = 0.0
         self._rearm_started_s = 0.0
         self._consumed: dict[str, int | None] = {
@@ -219,14 +220,19 @@ class TaskC:
             self._step_brake(now_s, status, status.system_decay or bool(self._decay_reasons))
         else:
             self._command_valves(self.brake.state in _VALVES_ENERGISED, now_s)
+        reasons = self._decay_reasons
+        if len(reasons) != len(self._decay_reasons_published):
+            # Reasons are only ever appended: the tuple is rebuilt when one is, not every 2 ms.
+            self._decay_reasons_published = tuple(reasons)
+        brake_state = self.brake.state
         actuation = ActuationStatus(
             time_s=now_s,
-            brake_state=self.brake.state,
+            brake_state=brake_state,
             etcs_state=self.etcs.state,
-            valves_energised=self.brake.state in _VALVES_ENERGISED,
+            valves_energised=brake_state in _VALVES_ENERGISED,
             relay_inserted_commanded=self.etcs.state in _RELAY_INSERTED,
-            system_decay=bool(self._decay_reasons) or self.brake.state is BrakeState.DECAYED,
-            decay_reasons=tuple(self._decay_reasons),
+            system_decay=bool(reasons) or brake_state is BrakeState.DECAYED,
+            decay_reasons=self._decay_reasons_published,
             consumed_rearm_number=self._consumed["rearm"],
         )
         self.status.post(actuation)

@@ -11,7 +11,10 @@ the drives' torque, and names itself in the VCU status:
 
 Energy management switches the range extender (RE) on at low SOC (charge sustaining: full
 power) or when the bus load exceeds the battery's planned share or its overload limit, and off
-with hysteresis on SOC and on load.
+with hysteresis on SOC and on load. While sustaining charge the batteries no longer have a
+planned share: their allowance is phased out to a buffer, the packs' continuous rating, which
+covers only the load above the RE's output (a grade) with the charge the RE's surplus on the
+level and on descents has put back above the threshold: the SOC does not fall below it.
 """
 
 from __future__ import annotations
@@ -85,6 +88,8 @@ class EnergyManager:
         self.sustaining = False
         self.range_extender_on = False
         self.battery_allowance_w = float("inf")
+        self.phase_out_w = float("inf")
+        """The discharge allowance phased out since charge sustaining began [W]."""
 
     def step(
         self,
@@ -94,10 +99,14 @@ class EnergyManager:
         bus_load_w: float,
         max_discharge_w: float,
         battery_overloaded: bool = False,
+        continuous_discharge_w: float = 0.0,
     ) -> float:
         """Update with the SOC and the bus load [W] (drives + auxiliaries); return RE ref [W].
 
-        An overloaded battery (I²T) calls the RE to full power to relieve it.
+        An overloaded battery (I²T) calls the RE to full power to relieve it. While sustaining
+        charge, the allowance is phased out at ``battery_phase_out_rate_w_per_s`` down to the
+        buffer: the packs' continuous power ``continuous_discharge_w`` [W] (1 C), ramped to zero
+        as the SOC comes down to the threshold ``sustaining_soc_on``.
         """
         p = self.parameters
         if soc < p.sustaining_soc_on:
@@ -105,10 +114,13 @@ class EnergyManager:
         elif soc > p.sustaining_soc_off:
             self.sustaining = False
         if self.sustaining:
-            start = min(self.battery_allowance_w, max_discharge_w)
-            self.battery_allowance_w = max(start - p.battery_phase_out_rate_w_per_s * dt_s, 0.0)
+            phased = min(self.phase_out_w, max_discharge_w)
+            self.phase_out_w = max(phased - p.battery_phase_out_rate_w_per_s * dt_s, 0.0)
+            above = (soc - p.sustaining_soc_on) / p.sustaining_buffer_band
+            buffer = min(continuous_discharge_w, max_discharge_w) * min(max(above, 0.0), 1.0)
+            self.battery_allowance_w = max(self.phase_out_w, buffer)
         else:
-            self.battery_allowance_w = max_discharge_w
+            self.phase_out_w = self.battery_allowance_w = max_discharge_w
         share = min(p.battery_share_w, max_discharge_w)
         excess = bus_load_w - share
         if self.sustaining or battery_overloaded or excess > p.range_extender_on_power_w:

@@ -13,6 +13,7 @@ the cruise load at 200 km/h below the range extender's 100 kW.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -55,11 +56,13 @@ def run_energy_mission(
     vehicle: PointMassParameters = SEED003_MISSION_VEHICLE,
     vcu_parameters: VcuParameters | None = None,
     powertrain_parameters: PowertrainParameters | None = None,
+    gradient_permille: Callable[[float], float] | None = None,
 ) -> MissionRecord:
     """Run at ``speed_reference_mps`` [m/s] from that speed until ``distance_m`` [m] is done.
 
     ``dt_s`` [s] is the step of every component (0.1 s keeps a 3600 s mission to a second or
-    two). Returns the recorded series; nothing is written anywhere.
+    two). ``gradient_permille`` gives the gradient [‰] at a distance [m] (level without it).
+    Returns the recorded series; nothing is written anywhere.
     """
     if distance_m <= 0.0 or dt_s <= 0.0:
         raise ValueError("the mission needs a positive distance and time step")
@@ -91,7 +94,8 @@ def run_energy_mission(
         motor_torque = commands.motor_torque_front_nm + commands.motor_torque_rear_nm
         pressure = commands.brake_pressure_front_pa + commands.brake_pressure_rear_pa
         brake_torque = vcu_p.brake_gain_nm_per_pa * pressure
-        plant.step(dt_s, (motor_torque - brake_torque) / radius)
+        gradient = 0.0 if gradient_permille is None else gradient_permille(plant.position_m)
+        plant.step(dt_s, (motor_torque - brake_torque) / radius, gradient_permille=gradient)
         state = powertrain.step(
             dt_s,
             mechanical_power_front_w=commands.motor_torque_front_nm * omega,

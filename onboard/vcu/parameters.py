@@ -84,7 +84,11 @@ class VcuParameters:
     range_extender_off_power_w: float = 10_000.0
     """Hysteresis on the load the RE would have to cover before it starts or stops."""
     battery_phase_out_rate_w_per_s: float = 500.0
-    """While sustaining, the battery's discharge allowance falls at this rate (seed 003 §7.2)."""
+    """While sustaining, the battery's discharge allowance falls at this rate (seed 003 §7.2)
+    to the buffer: the packs' continuous (1 C) power, for the load above the RE's output."""
+    sustaining_buffer_band: float = 0.005
+    """While sustaining, the buffer falls to zero as the SOC comes down to ``sustaining_soc_on``
+    over this band: the batteries lend only the charge the RE has put back above it."""
     range_extender_max_power_w: float = 100_000.0
     auxiliary_power_w: float = 5_000.0
     drive_efficiency: float = 0.92

@@ -19,6 +19,8 @@ __all__ = ["SpeedLoop", "VehicleControlUnit"]
 
 MIN_POWER_SPEED_MPS = 1.0
 """Below this speed the power limits give way to the torque limits (ω → 0)."""
+BATTERY_EFFICIENCY = 0.95
+"""The packs' efficiency (seed 003 §6.1): terminal power = η × cell power when discharging."""
 
 
 class SpeedLoop:
@@ -73,6 +75,7 @@ class VehicleControlUnit:
             bus_load_w=self._drives_power_w(inputs) + p.auxiliary_power_w,
             max_discharge_w=inputs.max_discharge_power_w,
             battery_overloaded=overloaded,
+            continuous_discharge_w=self._continuous_discharge_w(inputs),
         )
         allowance_w = self._battery_allowance_w(inputs, overloaded, limitations)
         traction_limit_w = max(
@@ -146,9 +149,13 @@ class VehicleControlUnit:
             limitations.add(Limitation.LOW_SOC)
         if overloaded:
             limitations.add(Limitation.BATTERY_OVERLOAD)
-            continuous_w = inputs.continuous_current_a * inputs.battery_voltage_v * 0.95
-            allowance = min(allowance, continuous_w)
+            allowance = min(allowance, self._continuous_discharge_w(inputs))
         return allowance
+
+    @staticmethod
+    def _continuous_discharge_w(inputs: VcuInputs) -> float:
+        """Terminal power [W] of the packs at their continuous (I²T) current rating."""
+        return inputs.continuous_current_a * inputs.battery_voltage_v * BATTERY_EFFICIENCY
 
     def _max_regen_mechanical_w(self, inputs: VcuInputs) -> float:
         """Mechanical braking power [W] the drives may take without overcharging the batteries."""

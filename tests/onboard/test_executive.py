@@ -155,3 +155,33 @@ def test_duplicate_task_name() -> None:
     executive.add_task("t", lambda _t: None, period_s=0.1)
     with pytest.raises(ValueError):
         executive.add_task("t", lambda _t: None, period_s=0.1)
+
+
+def test_a_task_registered_by_a_running_task_takes_its_place_in_the_order() -> None:
+    executive = Executive(SimClock(), record_trace=True)
+
+    def register(_t: int) -> None:
+        if "late" not in executive.tasks:
+            executive.add_task("late", lambda _t: None, period_s=0.01, priority=9)
+
+    executive.add_task("first", register, period_s=0.01, priority=5)
+    executive.add_task("second", lambda _t: None, period_s=0.01, priority=1)
+    executive.run_until(10 * MS)
+    assert executive.trace == [
+        (0, "first"), (0, "late"), (0, "second"),
+        (10 * MS, "late"), (10 * MS, "first"), (10 * MS, "second"),
+    ]  # fmt: skip
+
+
+def test_a_task_that_raises_leaves_the_others_running() -> None:
+    executive = Executive(SimClock(), record_trace=True)
+
+    def fail(_t: int) -> None:
+        raise RuntimeError("body failed")
+
+    executive.add_task("ok", lambda _t: None, period_s=0.01, priority=2)
+    executive.add_task("fails", fail, period_s=0.01, priority=1)
+    with pytest.raises(RuntimeError):
+        executive.run_until(0)
+    executive.run_until(20 * MS)
+    assert executive.trace == [(0, "ok"), (10 * MS, "ok"), (20 * MS, "ok")]

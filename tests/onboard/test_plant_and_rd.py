@@ -6,7 +6,7 @@ import math
 
 import pytest
 
-from onboard.adf import RemoteDrivingController
+from onboard.adf import RemoteDrivingController, RemoteDrivingGains
 from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.plant.point_mass import GRAVITY_MPS2
 
@@ -83,6 +83,34 @@ def test_rd_controller_tracks_a_target_speed_uphill() -> None:
             )  # fmt: skip
         model.step(0.01, demand, gradient_permille=4.0)
     assert model.speed_mps == pytest.approx(target, abs=0.05)
+
+
+@pytest.mark.parametrize("band_mps", [0.5, math.inf])
+def test_a_power_limited_climb_to_the_target_does_not_overshoot(band_mps: float) -> None:
+    """From 100 to 200 km/h the URV's 400 kW cannot follow the 0.5 m/s² ramp: the lag it
+    builds must not be integrated (without the band it comes out as a 2 km/h overshoot)."""
+    model = PointMassModel(speed_mps=100 / 3.6)
+    controller = RemoteDrivingController(
+        mass_kg=P.mass_kg,
+        rolling_coefficient=P.davis_a_n / (P.mass_kg * GRAVITY_MPS2),
+        gains=RemoteDrivingGains(integration_band_mps=band_mps),
+    )
+    controller.reset(model.speed_mps)
+    target, top, demand = 200 / 3.6, 0.0, 0.0
+    for step in range(30_000):  # 300 s at 10 ms, controller at 200 ms
+        if step % 20 == 0:
+            demand = controller.step(
+                0.2, target_speed_mps=target, speed_mps=model.speed_mps, gradient_permille=0.0,
+                force_limits_n=model.force_limits_n(model.speed_mps),
+            )  # fmt: skip
+        model.step(0.01, demand)
+        top = max(top, model.speed_mps)
+    assert model.speed_mps == pytest.approx(target, abs=0.01)
+    overshoot_kmh = (top - target) * 3.6
+    if math.isfinite(band_mps):
+        assert overshoot_kmh < 0.05
+    else:
+        assert overshoot_kmh > 1.0
 
 
 def test_rd_controller_brings_the_vehicle_to_a_stop() -> None:

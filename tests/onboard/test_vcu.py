@@ -212,6 +212,25 @@ def test_low_soc_phases_out_battery_power_and_runs_the_range_extender_at_full_po
     assert_allclose(vcu.status.traction_power_limit_w, 95_000.0, atol=1e-6)
 
 
+def test_while_sustaining_the_batteries_lend_only_the_charge_put_back_above_the_threshold() -> None:
+    manager = EnergyManager(P)
+    continuous = 210.0 * 742.0 * 0.95
+    limits = {"bus_load_w": 150_000.0, "max_discharge_w": 290_000.0}
+    reference = manager.step(1.0, soc=0.46, continuous_discharge_w=continuous, **limits)
+    assert manager.sustaining
+    assert_allclose(reference, P.range_extender_max_power_w, atol=1e-9)
+    # Under the threshold the allowance phases out to zero at 500 W/s...
+    for _ in range(600):
+        manager.step(1.0, soc=0.46, continuous_discharge_w=continuous, **limits)
+    assert_allclose(manager.battery_allowance_w, 0.0, atol=1e-9)
+    # ... above it the packs lend up to their continuous rating, ramped over the band.
+    above = P.sustaining_soc_on + P.sustaining_buffer_band
+    for soc, share in ((above + 0.01, 1.0), (P.sustaining_soc_on + 0.0025, 0.5), (0.465, 0.0)):
+        manager.step(1.0, soc=soc, continuous_discharge_w=continuous, **limits)
+        assert manager.sustaining
+        assert_allclose(manager.battery_allowance_w, share * continuous, rtol=1e-9, atol=1e-6)
+
+
 def test_range_extender_switches_on_soc_with_hysteresis() -> None:
     manager = EnergyManager(P)
     load = 10_000.0

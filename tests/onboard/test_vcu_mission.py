@@ -60,3 +60,27 @@ def test_from_half_charge_the_minimum_soc_comes_after_about_21_minutes(
     assert_allclose(from_half.range_extender_power_w[after], 100_000.0, atol=1.0)
     assert_allclose(from_half.speed_mps, REFERENCE_MPS, atol=0.5 / 3.6)
     assert from_half.soc[-1] > from_half.soc[lowest]
+
+
+def _descent_then_climb(distance_m: float) -> float:
+    """Level but for 5 km at −10 ‰ from 80 km and 4 km at +10 ‰ from 100 km [‰]."""
+    if 80_000.0 <= distance_m < 85_000.0:
+        return -10.0
+    if 100_000.0 <= distance_m < 104_000.0:
+        return 10.0
+    return 0.0
+
+
+def test_while_sustaining_the_batteries_lend_on_a_climb_what_a_descent_put_back() -> None:
+    record = run_energy_mission(initial_soc=0.5, gradient_permille=_descent_then_climb)
+    lowest = int(np.argmin(record.soc))
+    # The threshold comes on the level at about 21 min, before the descent at 80 km.
+    assert record.position_m[lowest] < 80_000.0
+    assert_allclose(record.soc[lowest], 0.465, atol=0.005)
+    climb = (record.position_m >= 100_000.0) & (record.position_m < 104_000.0)
+    # 10 ‰ takes 82 kW more than the RE's 100 kW give: the batteries lend what the descent
+    # put back, 200 km/h holds and the SOC stays above the threshold.
+    assert np.all(record.battery_power_w[climb][1:] > 80_000.0)
+    assert_allclose(record.range_extender_power_w[climb], 100_000.0, atol=1.0)
+    assert_allclose(record.speed_mps, REFERENCE_MPS, atol=0.6 / 3.6)
+    assert np.all(record.soc[lowest + 1 :] > record.soc[lowest])

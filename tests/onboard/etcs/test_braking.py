@@ -236,3 +236,32 @@ def test_a_target_has_only_its_own_limits() -> None:
         svl.distance_m(Limit.EBI, -1.0)
     with pytest.raises(EtcsInputError):
         svl.speed_mps(Limit.EBI, math.nan)
+
+
+@pytest.mark.parametrize("inhibit_compensation", [False, True])
+def test_the_bisection_limit_function_is_the_limit_arithmetic_bit_for_bit(
+    inhibit_compensation: bool,
+) -> None:
+    """``speed_mps`` bisects on a specialised copy of ``_limit_m``: the same bits everywhere
+    (the curve's gradient bands, V_ura's three pieces, accelerations either side of A_est2's
+    cap, below and above an MRSP target's speed)."""
+    builder = LineBuilder(id="steps", name="Gradient steps")
+    builder.straight(5_000.0, speed_kmh=160.0)
+    builder.straight(3_000.0, speed_kmh=160.0, gradient_permille=10.0)
+    builder.straight(4_000.0, speed_kmh=160.0, gradient_permille=-10.0)
+    track_map = TrackMap(builder.build(geodetic_step_m=500.0))
+    national = NationalValues(inhibit_speed_accuracy_compensation=inhibit_compensation)
+    model = BrakingModel(national=national)
+    targets = [Target(TargetKind.END_OF_AUTHORITY, 9_000.0),
+               Target(TargetKind.SUPERVISED_LOCATION, 9_500.0),
+               Target(TargetKind.SPEED_DECREASE, 10_000.0, 40 * KMH)]  # fmt: skip
+    speeds = [0.0, 1e-3, 5.0, 30 * KMH, 30 * KMH + 1e-9, 11.0, 40 * KMH, 90.0, 140.0, 600.0]
+    for target in targets:
+        limits = model.target_limits(target, track_map=track_map, from_m=0.0)
+        for limit in limits.limits:
+            if limit in (Limit.EBD, Limit.SBD):
+                continue
+            for acceleration in (-0.5, -0.0, 0.0, 0.2, 0.4, 1.3):
+                function = limits._limit_function(limit, acceleration)
+                for speed in speeds:
+                    assert function(speed) == limits._limit_m(limit, speed, acceleration)
