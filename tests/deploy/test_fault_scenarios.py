@@ -6,13 +6,10 @@ from __future__ import annotations
 import pytest
 
 from deploy.scenario import load_scenario
+from deploy.scenario.campaign import FAULT_SCENARIOS
 from deploy.scenario.runner import RunOptions, run_scenario
 
 pytestmark = pytest.mark.e2e
-
-FAULT_SCENARIOS = ("ma-shortened", "obstacle", "vigilance-absent", "ato-failure",
-                   "trackside-restart", "gps-outage", "odometer-failure", "udp-loss",
-                   "wheel-slip")  # fmt: skip
 
 
 @pytest.mark.parametrize("name", FAULT_SCENARIOS)
