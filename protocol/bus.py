@@ -147,18 +147,30 @@ class TypedPublisher(Generic[T]):
             )
         except zenoh.ZError as exc:
             raise TransportError(f"cannot declare publisher {self.key}: {exc}") from exc
+        # A put on Zenoh's callback thread and a close on another must not meet inside the
+        # binding: the one that finds the publisher in use fails with "Already borrowed".
+        self._lock = threading.Lock()
+        self._closed = False
 
     def put(self, message: T) -> None:
-        try:
-            self._publisher.put(self.topic.encode(message))
-        except zenoh.ZError as exc:
-            raise TransportError(f"put on {self.key} failed: {exc}") from exc
+        payload = self.topic.encode(message)
+        with self._lock:
+            if self._closed:
+                raise TransportError(f"put on {self.key} failed: the publisher is closed")
+            try:
+                self._publisher.put(payload)
+            except zenoh.ZError as exc:
+                raise TransportError(f"put on {self.key} failed: {exc}") from exc
 
     def close(self) -> None:
-        try:
-            self._publisher.undeclare()
-        except zenoh.ZError:
-            _log.debug("publisher %s already gone", self.key)
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            try:
+                self._publisher.undeclare()
+            except zenoh.ZError:
+                _log.debug("publisher %s already gone", self.key)
 
     def __enter__(self) -> Self:
         return self

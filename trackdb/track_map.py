@@ -292,6 +292,21 @@ class TrackMap:
             return None
         return self._stops[index], distance_m
 
+    def distance_beyond_balise_group_m(self, chainage_m: float) -> float | None:
+        """How far [m] the chainage lies beyond the last balise group before it (or at it): the
+        distance an odometer has run since its last reset there. On a ring the last group of
+        the previous lap counts; None before the first group of a line, or with no groups."""
+        positions_m = self._group_positions_m
+        if not positions_m:
+            return None
+        position_m = self.normalise(chainage_m)
+        index = bisect.bisect_right(positions_m, position_m) - 1
+        if index >= 0:
+            return position_m - positions_m[index]
+        if self._ring:
+            return position_m + self._length_m - positions_m[-1]
+        return None
+
     def balise_groups_ahead(
         self, chainage_m: float, distance_m: float
     ) -> list[tuple[BaliseGroup, float]]:

@@ -86,6 +86,8 @@ class ZenohBridge:
         self._zenoh = session
         self.sessions = sessions or SessionManager(trackside_id=instance_id)
         self._session_lock = threading.Lock()
+        self._closed = False
+        """Set by :meth:`close`: a callback still in flight then publishes nothing."""
         self._publishers: dict[tuple[str, str], TypedPublisher[Any]] = {}
         self._acks: dict[str, list[m.JourneyProfileAck]] = {}
         self._acks_changed = threading.Condition()
@@ -178,7 +180,12 @@ class ZenohBridge:
             with self._session_lock:
                 ack = self.sessions.on_status(report, report.sim_time_s)
             if ack is not None:
-                self._publisher(STATUS_ACK, report.vehicle_id).put(ack)
+                try:
+                    self._publisher(STATUS_ACK, report.vehicle_id).put(ack)
+                except TransportError:
+                    if not self._closed:
+                        raise
+                    return  # a report that arrived while the bridge closed: no one to answer
             with self._lock:
                 observers = list(self._status_observers)
             for observer in observers:
@@ -335,13 +342,17 @@ class ZenohBridge:
         return [snapshot for snapshot in snapshots if snapshot is not None]
 
     def close(self) -> None:
+        self._closed = True
         self._token.undeclare()
+        # The subscribers first, so that their callbacks stop before the publishers they use go.
         self._events.close()
         self._handshakes.close()
         self._terminations.close()
         self._journey_acks.close()
-        for publisher in self._publishers.values():
-            publisher.close()
         self._line_versions.close()
         self._liveliness.close()
         self._status.close()
+        with self._session_lock:
+            publishers = list(self._publishers.values())
+        for publisher in publishers:
+            publisher.close()

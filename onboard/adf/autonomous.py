@@ -65,14 +65,13 @@ class AutonomousDriving:
         origin = self.plan.start_chainage_m
         around = np.add.outer(np.array(positions), CEILING_WINDOW_M)
         ceilings = track_map.mrsp_ahead_mps(origin, around).min(axis=1)
-        permitted = np.full(len(positions), self.permitted_speed_mps)
+        ceilings = np.minimum(ceilings, self.permitted_speed_mps)
         if speed_mps is not None:
-            # A permitted speed that drops at once (an ETCS change) is a ceiling the vehicle
-            # can meet only after braking; the MRSP ahead is known in advance and kept.
+            # A ceiling the vehicle is already above (a permitted speed that drops at once, an
+            # overshoot) it can meet only after braking: held at what full braking reaches.
             delay = np.maximum(self._offsets_s - REACHABLE_DELAY_S, 0.0)
             reachable = np.maximum(speed_mps - REACHABLE_BRAKING_MPS2 * delay, 0.0)
-            permitted = np.maximum(permitted, reachable)
-        ceilings = np.minimum(ceilings, permitted)
+            ceilings = np.maximum(ceilings, reachable)
         return NmpcReference(np.array(positions), np.array(speeds), ceilings, np.array(forces))
 
     def _track_force_n(self, chainage_m: float) -> float:

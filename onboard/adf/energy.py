@@ -89,7 +89,7 @@ def optimal_leg(
     ds = distance_m / count
     chainages = [start_chainage_m + (i + 0.5) * ds for i in range(count)]
     nodes = [start_chainage_m + i * ds for i in range(count + 1)]
-    ceiling = [min(track_map.mrsp_mps(c), cap_mps or math.inf) for c in nodes]
+    ceiling = _ceilings_mps(track_map, model, start_chainage_m, distance_m, cap_mps, nodes)
     track = [track_force_n(track_map, model, c) for c in chainages]
     mass = model.mass_kg * (1.0 + model.rotating_mass_factor)
 
@@ -126,6 +126,24 @@ def optimal_leg(
         traction_forces_n=forces, brake_forces_n=brakes,
         traction_energy_j=float(forces.sum() * ds), duration_s=duration_s,
     )  # fmt: skip
+
+
+def _ceilings_mps(
+    track_map: TrackMap, model: PointMassParameters, start_chainage_m: float, distance_m: float,
+    cap_mps: float | None, nodes: list[float],
+) -> list[float]:  # fmt: skip
+    """The speed ceilings the ODP's legs keep, at the nodes [m/s]: the MRSP under the plan's
+    margin, held until the train has left a lower limit, and under the ETCS permitted curve
+    into each lower limit; the optimum is taken under the same limits as the plans it judges."""
+    from onboard.adf.odp_energy import LegTrack  # the legs' module builds on this one
+
+    track = LegTrack(
+        track_map, model, start_chainage_m=start_chainage_m, distance_m=distance_m,
+        cap_mps=cap_mps,
+    )  # fmt: skip
+    ceilings = np.minimum(track.ceilings_mps, track.limit_envelope_mps)
+    offsets = np.array(nodes) - start_chainage_m
+    return [float(v) for v in np.interp(offsets, track.distances_m, ceilings)]
 
 
 def _initial_speeds(count: int, cruise_mps: float, ceiling: list[float]) -> FloatArray:

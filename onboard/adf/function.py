@@ -28,7 +28,12 @@ from onboard.adf.autonomous import AutonomousDriving
 from onboard.adf.journey import JourneyPlan, JourneyStop
 from onboard.adf.nmpc import NmpcConfig, NmpcController
 from onboard.adf.odp import InfeasibleLegError, OdpLeg, OdpPlan
-from onboard.adf.odp_energy import MAX_BRAKING_MPS2, MRSP_MARGIN_MPS, replan_from_state
+from onboard.adf.odp_energy import (
+    LIMIT_BRAKING_MPS2,
+    MAX_BRAKING_MPS2,
+    MRSP_MARGIN_MPS,
+    replan_from_state,
+)
 from onboard.adf.rd_controller import RemoteDrivingController
 from onboard.adf.supervisor import ModeRequest, SupervisoryController
 from onboard.plant.point_mass import GRAVITY_MPS2, PointMassParameters
@@ -225,11 +230,8 @@ class DrivingFunction:
         travelled = position_m - self._origin_m
         for delay_s in (0.0, *TSR_DELAYS_S):
             before = self.replans
-            # Braking down to the new limit as for an EoA: under the ETCS permitted curve,
-            # which the TSR lowered at once.
             self._replan(now_s, travelled, speed_mps, stop.distance_m,
-                         arrival_s=stop.arrival_s + delay_s,
-                         braking_mps2=AUTHORITY_BRAKING_MPS2)  # fmt: skip
+                         arrival_s=stop.arrival_s + delay_s)  # fmt: skip
             if self.replans > before:
                 return
 
@@ -357,17 +359,24 @@ class DrivingFunction:
         # on the NMPC's ceiling makes the NLP degenerate.
         cap = min(cap, self.permitted_speed_mps - MRSP_MARGIN_MPS)
         journey_s = now_s - self._origin_s
-        try:
-            replanned = replan_from_state(
-                self.track_map, self.model, now_s=journey_s,
-                start_chainage_m=self.journey.start_chainage_m, distance_m=travelled_m,
-                speed_mps=speed_mps, stop_distance_m=stop_m - travelled_m,
-                cruise_mps=max(cap, speed_mps), arrival_s=arrival_s,
-                braking_mps2=braking_mps2 or (
-                    AUTHORITY_BRAKING_MPS2 if arrival_s is None else MAX_BRAKING_MPS2
-                ),
-            )  # fmt: skip
-        except InfeasibleLegError:
+        braking = braking_mps2 or (
+            AUTHORITY_BRAKING_MPS2 if arrival_s is None else MAX_BRAKING_MPS2
+        )
+        # Into a lower limit under the ETCS curve of the speed decrease when the train can still
+        # brake that gently (a TSR put in force just ahead), else at the stop's rate.
+        for limit_braking in (LIMIT_BRAKING_MPS2, braking):
+            try:
+                replanned = replan_from_state(
+                    self.track_map, self.model, now_s=journey_s,
+                    start_chainage_m=self.journey.start_chainage_m, distance_m=travelled_m,
+                    speed_mps=speed_mps, stop_distance_m=stop_m - travelled_m,
+                    cruise_mps=max(cap, speed_mps), arrival_s=arrival_s,
+                    braking_mps2=braking, limit_braking_mps2=limit_braking,
+                )  # fmt: skip
+                break
+            except InfeasibleLegError:
+                continue
+        else:
             return  # too close to change: the ceilings and ETCS still hold the train back
         legs = list(replanned.legs)
         if arrival_s is not None:

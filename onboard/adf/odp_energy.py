@@ -55,6 +55,7 @@ from onboard.plant.point_mass import MIN_POWER_SPEED_MPS, PointMassParameters
 from trackdb import TrackMap
 
 __all__ = [
+    "LIMIT_BRAKING_MPS2",
     "MAX_BRAKING_MPS2",
     "LegTrack",
     "ProfileLeg",
@@ -75,6 +76,20 @@ CRAWL_MPS = 0.5
 SPEED_TOLERANCE_MPS = 1e-3
 TIME_TOLERANCE_S = 1e-4
 ARRIVAL_TOLERANCE_S = 0.05
+LIMIT_BRAKING_MPS2 = 0.5
+"""Planned braking into a lower speed limit [m/s²], after :data:`LIMIT_REACTION_S`: ETCS
+supervises a speed decrease on an EBD-based curve whose permitted speed runs the reaction and
+brake build-up times ahead of the emergency deceleration, from the train's max safe front end;
+a plan braking into the limit as into a stop crosses it (docs/decisions.md, "Braking into a lower
+limit")."""
+LIMIT_REACTION_S = 6.0
+"""The permitted curve of a speed decrease as the planner takes it: this long at the speed, then
+braking at :data:`LIMIT_BRAKING_MPS2` (the URV's permitted curve is about 4.3 s and 0.59 m/s²)."""
+TRAIN_LENGTH_M = 10.0
+"""The URV's length [m]: a limit rises only when the train's rear has left the lower one."""
+ODOMETRY_FIXED_M, ODOMETRY_SHARE = 10.0, 0.05
+"""ETCS's odometry interval: the max safe front end runs this far [m] plus this share of the
+distance since the last balise group ahead of the estimate; the planner brakes that much earlier."""
 MRSP_MARGIN_MPS = 0.2 / 3.6
 """The plan holds this far under the MRSP (not under the journey's cap), so that tracking
 errors of the controller under a model mismatch stay under the limit."""
@@ -147,6 +162,7 @@ class LegTrack:
         cap_mps: float | None = None,
         max_acceleration_mps2: float = MAX_ACCELERATION_MPS2,
         braking_mps2: float = MAX_BRAKING_MPS2,
+        limit_braking_mps2: float = LIMIT_BRAKING_MPS2,
     ) -> None:
         if not (math.isfinite(distance_m) and distance_m > 0.0):
             raise InfeasibleLegError(f"leg of {distance_m} m")
@@ -156,10 +172,21 @@ class LegTrack:
         self.step_m = distance_m / steps
         self.distances_m = np.linspace(0.0, distance_m, steps + 1)
         self.ceilings_mps = np.full(steps + 1, math.inf if cap_mps is None else cap_mps)
-        for section in track_map.mrsp_window(start_chainage_m, distance_m):
+        sections = track_map.mrsp_window(start_chainage_m, distance_m)
+        for index, section in enumerate(sections):
             speed_mps = section.speed_mps - MRSP_MARGIN_MPS
+            to_m = section.to_distance_m
+            if index + 1 < len(sections) and sections[index + 1].speed_mps > section.speed_mps:
+                # ETCS raises the limit when the rear of the train's min safe front end has
+                # left the section: the train length and the odometry interval beyond it.
+                beyond = track_map.distance_beyond_balise_group_m(start_chainage_m + to_m)
+                to_m += (
+                    TRAIN_LENGTH_M
+                    + ODOMETRY_FIXED_M
+                    + ODOMETRY_SHARE * (to_m if beyond is None else beyond)
+                )
             first = max(0, math.floor(section.from_distance_m / self.step_m) - 1)
-            last = min(steps, math.ceil(section.to_distance_m / self.step_m) + 1)
+            last = min(steps, math.ceil(to_m / self.step_m) + 1)
             view = self.ceilings_mps[first : last + 1]
             np.minimum(view, speed_mps, out=view)
         if not np.all(np.isfinite(self.ceilings_mps)):
@@ -169,6 +196,37 @@ class LegTrack:
         self.effective_mass_kg = model.mass_kg * (1.0 + model.rotating_mass_factor)
         self.max_acceleration_mps2 = max_acceleration_mps2
         self.braking_mps2 = braking_mps2
+        """Into the stop at the leg's end [m/s²]."""
+        self.limit_braking_mps2 = min(limit_braking_mps2, braking_mps2)
+        """Into a lower speed limit inside the leg [m/s²] (never harder than into the stop)."""
+        self.limit_envelope_mps = self._limit_envelope(track_map, start_chainage_m)
+        """The highest speed at each grid point from which the ETCS permitted curve of every
+        drop of the ceilings ahead is kept, as :data:`LIMIT_REACTION_S` and the odometry
+        interval make it [m/s] (infinite before no drop)."""
+
+    def _limit_envelope(self, track_map: TrackMap, start_chainage_m: float) -> FloatArray:
+        distances, ceilings = self.distances_m, self.ceilings_mps
+        envelope = np.full(len(distances), math.inf)
+        drops = np.flatnonzero(ceilings[1:] < ceilings[:-1] - SPEED_TOLERANCE_MPS) + 1
+        if not drops.size or self.limit_braking_mps2 >= self.braking_mps2:
+            return envelope  # braking into the limits as into the stop: a replan's last resort
+        a, reaction_s = self.limit_braking_mps2, LIMIT_REACTION_S
+        top = float(ceilings.max())
+        for j in drops.tolist():
+            low, drop_m = float(ceilings[j]), float(distances[j])
+            # The odometry interval is widest where the braking may start: sample the window.
+            window_m = top * reaction_s + (top * top - low * low) / (2.0 * a)
+            samples = np.linspace(max(drop_m - window_m, 0.0), drop_m, 16)
+            beyond = [track_map.distance_beyond_balise_group_m(start_chainage_m + d)
+                      for d in samples.tolist()]  # fmt: skip
+            run_m = max(drop_m if b is None else b for b in beyond)
+            room_m = np.maximum(drop_m - distances[: j + 1] - ODOMETRY_FIXED_M
+                                - ODOMETRY_SHARE * run_m, 0.0)  # fmt: skip
+            # v·T + (v² − low²) / 2a = room, solved for v; never under the lower limit itself.
+            speeds = -a * reaction_s + np.sqrt((a * reaction_s) ** 2 + low * low + 2.0 * a * room_m)
+            np.maximum(speeds, low, out=speeds)
+            np.minimum(envelope[: j + 1], speeds, out=envelope[: j + 1])
+        return envelope
 
     @property
     def steps(self) -> int:
@@ -230,10 +288,13 @@ class _Profiles:
         two_b_h = 2.0 * track.braking_mps2 * track.step_m
         for i in range(n - 1, -1, -1):
             envelope[i] = min(envelope[i], math.sqrt(envelope[i + 1] ** 2 + two_b_h))
+        # Into each drop of the limits the gentler curve the ETCS permitted speed allows.
+        np.minimum(envelope, track.limit_envelope_mps, out=envelope)
         if self.initial_mps > envelope[0] + SPEED_TOLERANCE_MPS:
             raise InfeasibleLegError(
-                f"{self.initial_mps:.2f} m/s is above what braking at {track.braking_mps2} "
-                f"m/s² allows here ({envelope[0]:.2f} m/s)"
+                f"{self.initial_mps:.2f} m/s is above what braking at {track.limit_braking_mps2}"
+                f" m/s² into the limits and {track.braking_mps2} m/s² into the stop allows here"
+                f" ({envelope[0]:.2f} m/s)"
             )
         self._envelopes[holding_mps] = targets, envelope
         return targets, envelope
@@ -243,7 +304,7 @@ class _Profiles:
         onset speed U (or from the lower target, when higher), and before it the speeds from
         which coasting meets that curve; infinite elsewhere."""
         track = self.track
-        n, h, braking = track.steps, track.step_m, track.braking_mps2
+        n, h = track.steps, track.step_m
         curves = np.full(n + 1, math.inf)
         # Drops of the limits only: the coast-down from a high initial speed is a curve, not
         # a drop to brake for.
@@ -253,6 +314,7 @@ class _Profiles:
         track_n = track.track_forces_n.tolist()
         for end in (*ends[ends < n], n):
             low = 0.0 if end == n else float(targets[end])
+            braking = track.braking_mps2 if end == n else track.limit_braking_mps2
             onset = max(onset_mps, low)
             onset_m = float(track.distances_m[end]) - (onset**2 - low**2) / (2.0 * braking)
             first = min(max(math.floor(onset_m / h), -1), end - 1)
@@ -391,6 +453,7 @@ def optimise_leg(
     initial_speed_mps: float = 0.0,
     max_acceleration_mps2: float = MAX_ACCELERATION_MPS2,
     braking_mps2: float = MAX_BRAKING_MPS2,
+    limit_braking_mps2: float = LIMIT_BRAKING_MPS2,
 ) -> ProfileLeg:
     """The least-traction-energy hold/coast/brake leg arriving after ``duration_s`` [s].
 
@@ -402,6 +465,7 @@ def optimise_leg(
     track = LegTrack(
         track_map, model, start_chainage_m=start_chainage_m, distance_m=distance_m,
         cap_mps=cap_mps, max_acceleration_mps2=max_acceleration_mps2, braking_mps2=braking_mps2,
+        limit_braking_mps2=limit_braking_mps2,
     )  # fmt: skip
     best: ProfileLeg | None = None
     for brake_down in (False, True) if initial_speed_mps > CRAWL_MPS else (False,):
@@ -494,6 +558,7 @@ def replan_from_state(
     cruise_mps: float,
     arrival_s: float | None = None,
     braking_mps2: float = MAX_BRAKING_MPS2,
+    limit_braking_mps2: float = LIMIT_BRAKING_MPS2,
 ) -> OdpPlan:
     """A plan from the current reference (distance travelled and speed at ``now_s``) to a stop
     ``stop_distance_m`` further on: a shortened MA, an obstacle, the EoA after an ETCS
@@ -516,13 +581,14 @@ def replan_from_state(
             profile = optimise_leg(
                 track_map, model, start_chainage_m=chainage, distance_m=stop_distance_m,
                 duration_s=arrival_s - now_s, cap_mps=cruise_mps, initial_speed_mps=speed_mps,
+                braking_mps2=braking_mps2, limit_braking_mps2=limit_braking_mps2,
             )  # fmt: skip
         except InfeasibleLegError:
             profile = None
     if profile is None:
         track = LegTrack(
             track_map, model, start_chainage_m=chainage, distance_m=stop_distance_m,
-            cap_mps=cruise_mps, braking_mps2=braking_mps2,
+            cap_mps=cruise_mps, braking_mps2=braking_mps2, limit_braking_mps2=limit_braking_mps2,
         )  # fmt: skip
         profile = build_profile(track, holding_speed_mps=cruise_mps, initial_speed_mps=speed_mps)
     return OdpPlan(

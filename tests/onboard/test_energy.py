@@ -8,6 +8,7 @@ import pytest
 from onboard.adf.energy import optimal_leg, plan_traction_energy_j
 from onboard.adf.odp import InfeasibleLegError, OdpLeg, OdpPlan, plan_legs
 from onboard.adf.odp_energy import optimise_leg, plan_energy_legs, replan_from_state
+from onboard.etcs.braking import BrakingModel, Limit, Target, TargetKind
 from onboard.plant import URV_PARAMETERS
 from trackdb import LineBuilder, TemporarySpeedRestriction, TrackMap, load_seed_line
 
@@ -163,3 +164,38 @@ def test_replanning_from_a_moving_train_obeys_a_new_restriction() -> None:
     in_tsr = [plan.reference(float(t)) for t in times]
     assert max(v for d, v in in_tsr if 600.0 <= d <= 900.0) <= 20 / 3.6 + 1e-6
     assert max(v for d, v in in_tsr if d > 950.0) > 30 / 3.6  # back up after it
+
+
+@pytest.mark.parametrize("gradient_permille", [0.0, -10.0])
+def test_braking_into_a_lower_limit_stays_under_the_etcs_permitted_curve(
+    gradient_permille: float,
+) -> None:
+    """80 → 20 km/h inside a leg: braking at the stop's rate met 20 km/h on time but crossed
+    the permitted speed ETCS supervises the decrease with (from the max safe front end, 5 m +
+    5 % of the distance since the balise group ahead of the estimate)."""
+    line = TrackMap(
+        LineBuilder(id="drop", name="Drop")
+        .balise_group(1, 100.0)
+        .straight(1500.0, speed_kmh=80, gradient_permille=gradient_permille)
+        .straight(400.0, speed_kmh=20).straight(1000.0, speed_kmh=80).build()
+    )  # fmt: skip
+    leg = optimise_leg(
+        line, URV_PARAMETERS, start_chainage_m=0.0, distance_m=2800.0, duration_s=290.0,
+        cap_mps=80 / 3.6,
+    )  # fmt: skip
+    assert leg.duration_s == pytest.approx(290.0, abs=0.01)
+    decrease = Target(TargetKind.SPEED_DECREASE, 1500.0, 20 / 3.6)
+    limits = BrakingModel().target_limits(decrease, track_map=line, from_m=0.0)
+    margins = []
+    for distance, speed in zip(leg.distances_m.tolist(), leg.speeds_mps.tolist(), strict=True):
+        if not 300.0 <= distance < 1500.0:
+            continue
+        beyond = line.distance_beyond_balise_group_m(distance)
+        assert beyond is not None
+        front = distance + 5.0 + 0.05 * beyond
+        curve = limits.speed_mps(Limit.PERMITTED, 1500.0 - front, acceleration_mps2=0.0)
+        permitted = max(curve, decrease.speed_mps)  # the curve ends at the target speed
+        margins.append(permitted - speed)
+    assert min(margins) >= 0.0
+    # ... and the plan still brakes late enough to be worth it: within 2 km/h of the curve.
+    assert min(margins) <= 2 / 3.6

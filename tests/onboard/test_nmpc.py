@@ -5,9 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from onboard.adf.autonomous import AutonomousDriving
 from onboard.adf.nmpc import NmpcConfig, NmpcController, NmpcReference
+from onboard.adf.odp import plan_legs
 from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.plant.point_mass import with_model_mismatch
+from trackdb import LineBuilder, TemporarySpeedRestriction, TrackMap
 
 N, DT = 50, 0.2
 TARGET_MPS = 40 / 3.6
@@ -119,3 +122,23 @@ def test_ipopt_agrees_with_the_sqp_configuration() -> None:
         )
     assert all(result.success for result in results)
     assert results[0].force_n == pytest.approx(results[1].force_n, rel=1e-3, abs=5.0)
+
+
+def test_a_ceiling_the_train_is_already_above_is_met_by_braking_not_failed() -> None:
+    """Over a lower MRSP by 1 km/h (an overshoot, a limit in force at once): the stages'
+    ceilings are held at what full braking reaches, so the NLP stays feasible and brakes."""
+    line = TrackMap(LineBuilder(id="flat", name="Flat").straight(900.0, speed_kmh=80).build())
+    plan = plan_legs(line, start_chainage_m=0.0, stops=[(850.0, 150.0, 150.0)], cap_mps=40 / 3.6)
+    line.add_temporary_speed_restriction(
+        TemporarySpeedRestriction(id="tsr", start_m=300.0, end_m=800.0, speed_mps=20 / 3.6)
+    )
+    driving = AutonomousDriving(plan, URV_PARAMETERS, NmpcController(URV_PARAMETERS))
+    now_s = next(t for t in np.arange(0.0, 150.0, 0.1) if plan.reference(float(t))[0] > 320.0)
+    distance, _ = plan.reference(float(now_s))
+    speed = 21 / 3.6
+    reference = driving.reference(float(now_s), speed_mps=speed)
+    assert reference.max_speed_mps[0] >= speed
+    assert np.all(reference.max_speed_mps[-10:] <= 20 / 3.6 + 1e-9)
+    force = driving.force_n(float(now_s), distance_m=distance, speed_mps=speed, applied_force_n=0.0)
+    assert driving.last_result is not None and driving.last_result.success
+    assert force < 0.0

@@ -463,3 +463,24 @@ def test_a_noisy_fix_projects_within_its_noise(
         # On a curve of radius R an offset d moves the foot point by up to d·R/(R−d).
         assert ring_gap_m(track, projection.chainage_m, chainage_m) <= noise_m * 1.02 + 0.05
         assert abs(projection.cross_track_m) <= noise_m + 0.05
+
+
+def test_distance_beyond_the_last_balise_group() -> None:
+    line = (
+        LineBuilder(id="groups", name="Groups").straight(2000.0, speed_kmh=80)
+        .balise_group(1, 300.0).balise_group(2, 1200.0, link_next=False).build()
+    )  # fmt: skip
+    track_map = TrackMap(line)
+    assert track_map.distance_beyond_balise_group_m(100.0) is None  # before the first group
+    assert track_map.distance_beyond_balise_group_m(300.0) == 0.0
+    assert track_map.distance_beyond_balise_group_m(1000.0) == pytest.approx(700.0)
+    assert track_map.distance_beyond_balise_group_m(1900.0) == pytest.approx(700.0)
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    first = min(group.position_m for group in ring.line.balise_groups)
+    last = max(group.position_m for group in ring.line.balise_groups)
+    # Before the first group of a lap, the last group of the previous lap counts.
+    assert ring.distance_beyond_balise_group_m(first / 2.0) == pytest.approx(
+        first / 2.0 + ring.length_m - last
+    )
+    bare = TrackMap(LineBuilder(id="bare", name="Bare").straight(500.0, speed_kmh=40).build())
+    assert bare.distance_beyond_balise_group_m(250.0) is None
