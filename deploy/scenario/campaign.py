@@ -16,6 +16,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import multiprocessing
 import traceback
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -174,7 +175,10 @@ def run_campaign(
 ) -> list[CellResult]:
     """Every cell over ``workers`` processes; the results in the cells' order."""
     results: dict[Cell, CellResult] = {}
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    # Spawned, not forked: a fork copies a process whose Zenoh runtime threads it does not copy
+    # (a test run, a console that has opened sessions), and the child's sessions then hang.
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
         futures = {pool.submit(run_cell, cell): cell for cell in cells}
         for future in as_completed(futures):
             result = future.result()
