@@ -20,6 +20,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+import time
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,6 +41,7 @@ from onboard.vcu.vehicle import BogieVehicle
 from protocol import (
     LivelinessWatcher,
     ProtocolError,
+    RequestTimeoutError,
     TypedPublisher,
     TypedQueryable,
     TypedSubscriber,
@@ -77,6 +79,8 @@ goes, and is not made again until a session is established anew."""
 RETRANSMIT_S = 2.0
 """Lockstep: after this long without an acknowledgement [s of wall time] the report is sent
 once more (a report lost on the way would otherwise cost the session)."""
+HANDSHAKE_RETRY_S = 0.02
+"""Lockstep: wall time between two tries of a handshake a seen trackside has not answered [s]."""
 
 
 @dataclass(frozen=True)
@@ -470,18 +474,40 @@ class OnboardNode:
         if handshake is None:
             return
         if self.lockstep:
-            try:
-                reply = request(self._session, SESSION, handshake, timeout_s=1.0,
-                                vehicle=self.vehicle_id)  # fmt: skip
-            except ProtocolError:
-                reply = None
-            self._take_session_reply(reply, now_ns)
+            self._take_session_reply(self._lockstep_handshake(handshake), now_ns)
             return
         try:
             request_async(self._session, SESSION, handshake, self._on_session_reply,
                           vehicle=self.vehicle_id)  # fmt: skip
         except ProtocolError:
             self._take_session_reply(None, now_ns)
+
+    def _lockstep_handshake(
+        self, handshake: m.SessionRequest
+    ) -> m.SessionAccept | m.SessionReject | None:
+        """Lockstep: the handshake's answer, taken at the tick it was asked at. While a trackside's
+        token is seen, the request is repeated (up to :data:`BARRIER_S` of wall time) until it is
+        answered: the trackside's queryable may reach this session a moment after its token, and a
+        loaded machine may answer late, neither of which may change the run. With no trackside
+        seen, one try."""
+        deadline = time.monotonic() + BARRIER_S
+        while True:
+            try:
+                reply: m.SessionAccept | m.SessionReject = request(
+                    self._session, SESSION, handshake, timeout_s=1.0, vehicle=self.vehicle_id
+                )
+                return reply
+            except RequestTimeoutError:
+                if not self.trackside_seen or time.monotonic() > deadline:
+                    return None
+                time.sleep(HANDSHAKE_RETRY_S)
+            except ProtocolError:
+                return None
+
+    @property
+    def trackside_seen(self) -> bool:
+        """Whether a trackside's liveliness token is seen now."""
+        return bool(self._tracksides.alive())
 
     def _take_session_reply(
         self, reply: m.SessionAccept | m.SessionReject | None, now_ns: int

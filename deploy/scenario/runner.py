@@ -362,6 +362,10 @@ class _Stack:
     def run(self, progress: ProgressCallback | None) -> RunOutcome:
         spec, node = self.spec, self.node
         end_when = None if spec.end_when is None else _condition(spec.end_when)
+        # The first handshake is due at the first tick: it is made once the onboard sees the
+        # trackside, however long the two sessions take to meet in wall time.
+        if not _wait(lambda: node.trackside_seen, timeout_s=LINK_WAIT_S):
+            raise ScenarioRunError("the onboard never saw the trackside")
         while node.clock.now_s < spec.duration_s - 1e-9:
             state = self.state()
             if end_when is not None and end_when(state):
@@ -750,6 +754,7 @@ class _Stack:
             zenoh_link=None if self.link is None else {
                 "cuts": self.link.proxy.stats().cuts,
                 "connections_dropped": self.link.connections_dropped,
+                "flaps_on_restore": self.link.flaps,
             },
         )  # fmt: skip
         kpis["actions"] = [vars(item) for item in self.actions]

@@ -19,7 +19,11 @@ from deploy.link_proxy import LinkMode, LinkProxy
 from protocol import LivelinessWatcher
 from protocol.registry import ALIVE_ONBOARD, ALIVE_TRACKSIDE
 
-__all__ = ["ZenohLinkFault"]
+__all__ = ["SETTLE_S", "ZenohLinkFault"]
+
+SETTLE_S = 1.5
+"""How long, in wall time, a restored link must hold before the run goes on [s] (longer than the
+1 s link lease)."""
 
 
 class ZenohLinkFault:
@@ -41,6 +45,8 @@ class ZenohLinkFault:
         self._trackside_seen = LivelinessWatcher(onboard, ALIVE_TRACKSIDE.format(instance="*"))
         self._onboard_seen = LivelinessWatcher(trackside, ALIVE_ONBOARD.format(vehicle=vehicle_id))
         self.connections_dropped = 0
+        self.flaps = 0
+        """Times a side lost the other's token again while the restored link settled."""
 
     @classmethod
     def connect_endpoint(cls, proxy: LinkProxy) -> str:
@@ -63,9 +69,22 @@ class ZenohLinkFault:
         return _wait_for(self._neither_seen, timeout_s)
 
     def restore(self, *, timeout_s: float) -> bool:
-        """Restore the link; False if the sessions have not met again after ``timeout_s`` [s]."""
+        """Restore the link; False if the sessions have not met again after ``timeout_s`` [s].
+
+        The sessions must then keep seeing each other for :data:`SETTLE_S`: connections made or
+        held while the link was cut are dropped around the restore, and a token lost again a
+        moment after it came back would otherwise fall on the new session at a tick set by
+        wall time."""
         self.proxy.restore()
-        return _wait_for(self._both_seen, timeout_s)
+        deadline = time.monotonic() + timeout_s
+        while _wait_for(self._both_seen, deadline - time.monotonic()):
+            settled = time.monotonic() + SETTLE_S
+            while self._both_seen() and time.monotonic() < settled:
+                time.sleep(0.01)
+            if self._both_seen():
+                return True
+            self.flaps += 1
+        return False
 
     def close(self) -> None:
         self._trackside_seen.close()

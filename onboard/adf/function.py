@@ -364,7 +364,8 @@ class DrivingFunction:
         )
         # Into a lower limit under the ETCS curve of the speed decrease when the train can still
         # brake that gently (a TSR put in force just ahead), else at the stop's rate.
-        for limit_braking in (LIMIT_BRAKING_MPS2, braking):
+        limit_rates: tuple[float | None, ...] = (LIMIT_BRAKING_MPS2, None)
+        for limit_braking in limit_rates:
             try:
                 replanned = replan_from_state(
                     self.track_map, self.model, now_s=journey_s,

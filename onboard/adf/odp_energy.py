@@ -162,7 +162,7 @@ class LegTrack:
         cap_mps: float | None = None,
         max_acceleration_mps2: float = MAX_ACCELERATION_MPS2,
         braking_mps2: float = MAX_BRAKING_MPS2,
-        limit_braking_mps2: float = LIMIT_BRAKING_MPS2,
+        limit_braking_mps2: float | None = LIMIT_BRAKING_MPS2,
     ) -> None:
         if not (math.isfinite(distance_m) and distance_m > 0.0):
             raise InfeasibleLegError(f"leg of {distance_m} m")
@@ -197,7 +197,13 @@ class LegTrack:
         self.max_acceleration_mps2 = max_acceleration_mps2
         self.braking_mps2 = braking_mps2
         """Into the stop at the leg's end [m/s²]."""
-        self.limit_braking_mps2 = min(limit_braking_mps2, braking_mps2)
+        self.keeps_permitted_curves = limit_braking_mps2 is not None
+        """Whether the plan keeps under the ETCS permitted curve of each drop of the limits; not
+        when ``limit_braking_mps2`` is None, a replan's last resort, which brakes into the
+        limits as into the stop."""
+        self.limit_braking_mps2 = (
+            braking_mps2 if limit_braking_mps2 is None else min(limit_braking_mps2, braking_mps2)
+        )
         """Into a lower speed limit inside the leg [m/s²] (never harder than into the stop)."""
         self.limit_envelope_mps = self._limit_envelope(track_map, start_chainage_m)
         """The highest speed at each grid point from which the ETCS permitted curve of every
@@ -208,8 +214,8 @@ class LegTrack:
         distances, ceilings = self.distances_m, self.ceilings_mps
         envelope = np.full(len(distances), math.inf)
         drops = np.flatnonzero(ceilings[1:] < ceilings[:-1] - SPEED_TOLERANCE_MPS) + 1
-        if not drops.size or self.limit_braking_mps2 >= self.braking_mps2:
-            return envelope  # braking into the limits as into the stop: a replan's last resort
+        if not drops.size or not self.keeps_permitted_curves:
+            return envelope
         a, reaction_s = self.limit_braking_mps2, LIMIT_REACTION_S
         top = float(ceilings.max())
         for j in drops.tolist():
@@ -453,7 +459,7 @@ def optimise_leg(
     initial_speed_mps: float = 0.0,
     max_acceleration_mps2: float = MAX_ACCELERATION_MPS2,
     braking_mps2: float = MAX_BRAKING_MPS2,
-    limit_braking_mps2: float = LIMIT_BRAKING_MPS2,
+    limit_braking_mps2: float | None = LIMIT_BRAKING_MPS2,
 ) -> ProfileLeg:
     """The least-traction-energy hold/coast/brake leg arriving after ``duration_s`` [s].
 
@@ -558,7 +564,7 @@ def replan_from_state(
     cruise_mps: float,
     arrival_s: float | None = None,
     braking_mps2: float = MAX_BRAKING_MPS2,
-    limit_braking_mps2: float = LIMIT_BRAKING_MPS2,
+    limit_braking_mps2: float | None = LIMIT_BRAKING_MPS2,
 ) -> OdpPlan:
     """A plan from the current reference (distance travelled and speed at ``now_s``) to a stop
     ``stop_distance_m`` further on: a shortened MA, an obstacle, the EoA after an ETCS
