@@ -575,6 +575,13 @@ class OnboardNode:
 
     # -- state ---------------------------------------------------------------------------------
 
+    def current_status(self) -> m.StatusReport:
+        """The status now: the report sent at this tick, if one was, else a new one."""
+        report, now_ns = self._last_report, self.clock.now_ns
+        if report is not None and abs(report.sim_time_s - now_ns / NS_PER_S) < 1e-9:
+            return report
+        return self.status(now_ns)
+
     def status(self, now_ns: int) -> m.StatusReport:
         etcs = self.stack.etcs.output
         journey = self.track_database.journey

@@ -625,7 +625,7 @@ class _Stack:
         if thread is None:
             return
         operator = thread.operator
-        if operator.step(self.node.status(self.node.clock.now_ns)):
+        if operator.step(self.node.current_status()):
             vehicle = self.spec.vehicle.id
             if not _wait(lambda: operator.outstanding(vehicle) == 0):
                 raise ScenarioRunError("the simulated operator's answer never came back")

@@ -51,6 +51,8 @@ EOA_MOVED_M = 5.0
 ODOMETRY_SHARE = 0.06
 """The SvL seen from the max-safe front end comes closer by 5 % of the distance run (the
 odometry interval grows): the plan anticipates it, with a margin."""
+ARRIVAL_RESOLUTION_S = 1e-3
+"""How closely the arrival estimates find the time of the reference at the vehicle [s]."""
 AUTHORITY_BRAKING_MPS2 = 0.35
 """The plan's braking for an EoA stop: half the service brake deceleration, so that the plan
 stays under the ETCS permitted curve, whose SBD uses the full A_brake_service but starts the
@@ -288,7 +290,7 @@ class DrivingFunction:
         if plan.reference(high)[0] < ahead:
             reference_s = high
         else:
-            for _ in range(40):  # when the reference passes just beyond the vehicle
+            while high - low > ARRIVAL_RESOLUTION_S:  # when the reference passes the vehicle
                 middle = 0.5 * (low + high)
                 low, high = (middle, high) if plan.reference(middle)[0] < ahead else (low, middle)
             reference_s = high

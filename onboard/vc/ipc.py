@@ -19,7 +19,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Generic, TypeVar
+from typing import Generic, NamedTuple, TypeVar
 
 from onboard.etcs.balises import TelegramHeader
 from onboard.vc._exceptions import VcInputError
@@ -89,9 +89,11 @@ class MessageQueue(Generic[T]):
         return len(self._items)
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class SupervisionStatus:
-    """Task B's outputs of one cycle, for Task C and Task A (seed 004: items i–vi and more)."""
+class SupervisionStatus(NamedTuple):
+    """Task B's outputs of one cycle, for Task C and Task A (seed 004: items i–vi and more).
+
+    The two statuses are named tuples, immutable as frozen dataclasses are, and built in a
+    quarter of the time: each task builds one every 2 ms cycle."""
 
     time_s: float
     state: TaskBState
@@ -119,8 +121,7 @@ class SupervisionStatus:
     last_balise_header: TelegramHeader | None
 
 
-@dataclass(frozen=True, slots=True, kw_only=True)
-class ActuationStatus:
+class ActuationStatus(NamedTuple):
     """Task C's outputs of one cycle, for Task A and Task B."""
 
     time_s: float

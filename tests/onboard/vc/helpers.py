@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 from onboard.vc import (
     SECTIONS,
     AtoObResponse,
@@ -89,7 +87,7 @@ _BASE = SupervisionStatus(
 
 def supervision(time_s: float, **changes: object) -> SupervisionStatus:
     """A Task B status at ``time_s``: monitoring, moving, nothing confirmed, unless changed."""
-    return replace(_BASE, time_s=time_s, **changes)  # type: ignore[arg-type]
+    return _BASE._replace(time_s=time_s, **changes)
 
 
 def quick(
