@@ -59,6 +59,17 @@ def _format(value: Any) -> str:
     return str(value)
 
 
+def _breakdown_text(breakdown: dict[str, Any], shown: int = 5) -> str:
+    """The stepping's wall time and its largest tasks, e.g. ``lockstep 70.1 s: sfa 26 %, …``."""
+    tasks = [f"{name} {100 * item['share']:.0f} %"
+             for name, item in list(breakdown["tasks"].items())[:shown]
+             if item["share"] is not None]  # fmt: skip
+    text = f"lockstep {breakdown['lockstep_s']:.1f} s: " + ", ".join(tasks)
+    if "outside_lockstep_s" in breakdown:
+        text += f"; outside it {breakdown['outside_lockstep_s']:.1f} s"
+    return text
+
+
 def summary_table(outcome: RunOutcome) -> Table:
     """The run's headline KPIs and each expectation."""
     kpis = outcome.kpis
@@ -71,6 +82,9 @@ def summary_table(outcome: RunOutcome) -> Table:
                 "vc_outcome"):  # fmt: skip
         if key in kpis:
             table.add_row(key, _format(kpis[key]))
+    breakdown = kpis.get("wall_time_breakdown")
+    if breakdown is not None:
+        table.add_row("wall time by task", _breakdown_text(breakdown))
     for stop in kpis["stops"]:
         table.add_row(f"stop {stop['name']}", f"arrival {stop['arrival_error_s']:+.2f} s, "
                       f"position {stop['stop_error_m']:+.3f} m")  # fmt: skip

@@ -15,7 +15,7 @@ from deploy.scenario.runner import RunOptions, run_scenario
 
 pytestmark = pytest.mark.e2e
 
-WALL_CLOCK = ("wall_time_s", "real_time_factor", "nmpc_ms")
+WALL_CLOCK = ("wall_time_s", "real_time_factor", "nmpc_ms", "wall_time_breakdown")
 """Fields that measure the machine, not the run."""
 
 
@@ -36,6 +36,12 @@ def test_bologna_ring_meets_the_field_test_kpis_and_repeats_exactly(tmp_path: Pa
     assert first["etcs_sb_count"] == first["etcs_eb_count"] == first["vc_eb_count"] == 0
     assert first["position_error_m"]["rms"] <= 1.0
     assert first["real_time_factor"] > 0.0
+    breakdown = first["wall_time_breakdown"]
+    tasks = breakdown["tasks"]
+    assert {"sfa", "control", "vc.B", "vc.C", "vc.A"} <= tasks.keys()
+    assert tasks["vc.B"]["releases"] == pytest.approx(first["sim_time_s"] / 0.002, abs=2)
+    in_tasks_s = sum(task["total_s"] for task in tasks.values())
+    assert 0.0 < in_tasks_s <= breakdown["lockstep_s"] <= first["wall_time_s"]
     telemetry = np.load(tmp_path / "first" / "telemetry.npz")
     assert telemetry["speed_mps"].max() == pytest.approx(40 / 3.6, abs=0.5)
     assert "<img" in (tmp_path / "first" / "report.html").read_text()
