@@ -130,7 +130,7 @@ class NmpcController:
         end = start + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         return ca.Function("step", [state, increment, track], [end])
 
-    def _build(self) -> tuple[ca.Function, dict[str, list[float]]]:
+    def _build(self) -> tuple[ca.Function, dict[str, ca.DM]]:
         c, m, n = self.config, self.model, self.config.horizon_steps
         step = self._step
         states = ca.SX.sym("X", STATE_SIZE, n + 1)
@@ -175,7 +175,9 @@ class NmpcController:
             "lbg": lower,
             "ubg": upper,
         }
-        return ca.nlpsol("nmpc", c.solver, problem, _solver_options(c)), bounds
+        # Converted once: casadi converts Python lists element by element at every call.
+        solver = ca.nlpsol("nmpc", c.solver, problem, _solver_options(c))
+        return solver, {key: ca.DM(values) for key, values in bounds.items()}
 
     def reset(self) -> None:
         """Forget the warm start and the previous plan (after a mode change)."""
