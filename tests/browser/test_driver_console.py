@@ -13,6 +13,7 @@ import re
 import shutil
 import threading
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Any
 
 import httpx
@@ -32,27 +33,38 @@ pytestmark = [
 ]
 
 SPEED_UP = 5.0
-CONSOLE_VC = VcConfig(vigilance_period_s=120.0, vigilance_timeout_s=60.0)
-"""Vigilance asked at power-up and every 120 s of simulated time; 60 s to answer (12 s of wall
-time at 5×), so a person (the test) has room to click."""
+CONSOLE_VC = VcConfig(vigilance_period_s=120.0, vigilance_timeout_s=100.0)
+"""Vigilance asked at power-up and every 120 s of simulated time; 100 s to answer (20 s of wall
+time at 5×), so a person (the test) has room to click on a loaded machine."""
 WAIT_MS = 30_000
 """Upper bound for one step to show in the page; the steps are much faster when things work."""
 ENGAGE_ATTEMPTS = 5
 
 
+@dataclass
+class Vehicle:
+    node: OnboardNode
+    runner: threading.Thread
+
+    def start(self) -> None:
+        """Power up: the VC's power-up requests start their timeouts now."""
+        self.runner.start()
+
+
 @pytest.fixture
-def urv1(router_endpoint: str) -> Iterator[OnboardNode]:
-    """URV1 on bologna-ring, nobody answering its Vital Control but the console's user."""
+def urv1(router_endpoint: str) -> Iterator[Vehicle]:
+    """URV1 on bologna-ring, nobody answering its Vital Control but the console's user. The
+    test powers it up once the page is there (a browser may take seconds to start)."""
     with open_session(ZenohSettings(connect=(router_endpoint,))) as session:
         node = OnboardNode(
             OnboardSettings(vehicle_id="URV1", vc_config=CONSOLE_VC), session=session,
             clock=RealTimeClock(SPEED_UP), track_map=TrackMap(load_seed_line("bologna-ring")),
         )  # fmt: skip
-        runner = threading.Thread(target=node.run, daemon=True)
-        runner.start()
-        yield node
+        vehicle = Vehicle(node, threading.Thread(target=node.run, daemon=True))
+        yield vehicle
         node.stop()
-        runner.join(5.0)
+        if vehicle.runner.is_alive():
+            vehicle.runner.join(5.0)
         node.close()
 
 
@@ -109,12 +121,14 @@ def _engage(page: Any) -> None:
 
 
 def test_driver_console_drives_urv1_through_the_field_sequence(
-    console_url: str, urv1: OnboardNode, chromium: Any, artefacts: Artefacts
+    console_url: str, urv1: Vehicle, chromium: Any, artefacts: Artefacts
 ) -> None:
     from playwright.sync_api import expect
 
     page = chromium.new_page(viewport={"width": 1400, "height": 1100})
     _log_in(page, console_url)
+    expect(page.locator("#fleet-panel")).to_be_visible(timeout=WAIT_MS)
+    urv1.start()
     expect(page.locator("tr[data-vehicle=URV1]")).to_be_visible(timeout=WAIT_MS)
     page.click("a[data-open=URV1]")
     expect(page.locator("#driver-panel")).to_be_visible()
@@ -151,7 +165,7 @@ def test_driver_console_drives_urv1_through_the_field_sequence(
     expect(_field(page, "vc-standstill")).to_have_text("yes", timeout=WAIT_MS)
     artefacts.screenshot(page, "stopped-in-fs")
 
-    _create_journey(console_url, float(urv1.track_map.normalise(urv1.plant.position_m)))
+    _create_journey(console_url, float(urv1.node.track_map.normalise(urv1.node.plant.position_m)))
     page.click("#journeys-reload")
     expect(page.locator("#journey-select option[value=bologna-ring]")).to_have_count(1)
     page.select_option("#journey-select", "bologna-ring")
