@@ -72,6 +72,13 @@ EXPECTED_COUNTS: dict[SensorType, tuple[int, int]] = {
 }
 """(N_INT, N_DOUBLE) fixed for each sensor type."""
 
+_MESSAGES = {
+    sensor_type: struct.Struct(f"{_HEADER.format}{n_int}i{n_double}d")
+    for sensor_type, (n_int, n_double) in EXPECTED_COUNTS.items()
+}
+"""Each sensor type's whole datagram, header and values (compiled once)."""
+_FIELDS_AFTER_HEADER = 4
+
 
 @dataclass(frozen=True)
 class InputPacket:
@@ -119,11 +126,10 @@ def encode_input(packet: InputPacket) -> bytes:
         raise DatagramEncodeError(
             f"{packet.sensor_type.name} carries {expected} (ints, doubles), got {counts}"
         )
-    if any(not _INT32_MIN <= value <= _INT32_MAX for value in packet.ints):
+    if packet.ints and any(not _INT32_MIN <= value <= _INT32_MAX for value in packet.ints):
         raise DatagramEncodeError("an int value does not fit int32")
-    n_int, n_double = counts
-    return _HEADER.pack(int(packet.sensor_type), packet.seq_no, n_int, n_double) + struct.pack(
-        f"<{n_int}i{n_double}d", *packet.ints, *packet.doubles
+    return _MESSAGES[packet.sensor_type].pack(
+        int(packet.sensor_type), packet.seq_no, *counts, *packet.ints, *packet.doubles
     )
 
 
@@ -147,13 +153,9 @@ def decode_input(data: bytes) -> InputPacket:
             f"{sensor_type.name} needs {EXPECTED_COUNTS[sensor_type]} (ints, doubles), "
             f"got {(n_int, n_double)}"
         )
-    values = struct.unpack_from(f"<{n_int}i{n_double}d", data, INPUT_HEADER_SIZE)
-    return InputPacket(
-        sensor_type=sensor_type,
-        seq_no=seq_no,
-        ints=tuple(int(v) for v in values[:n_int]),
-        doubles=tuple(float(v) for v in values[n_int:]),
-    )
+    values = _MESSAGES[sensor_type].unpack(data)[_FIELDS_AFTER_HEADER:]
+    # struct gives Python ints for "i" and floats for "d": the tuples are the packet's as they are.
+    return InputPacket(sensor_type, seq_no, values[n_int:], values[:n_int])
 
 
 def encode_output(packet: OutputPacket) -> bytes:
