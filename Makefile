@@ -32,9 +32,13 @@ lint: $(VENV)/.installed-test
 typecheck: $(VENV)/.installed-test
 	$(BIN)/mypy $(PACKAGES)
 
+# The suite runs on PYTEST_WORKERS processes (pytest-xdist; idle workers take tests queued on
+# busy ones). The lockstep scenario tests dominate and are independent; 1 runs it serially.
+PYTEST_WORKERS ?= 2
+
 pytest: $(VENV)/.installed-test
 	ATO_TEST_DATABASE_URL=$${ATO_TEST_DATABASE_URL:-$(if $(PG_UP),$(PG_URL),)} \
-		$(BIN)/python -m pytest
+		$(BIN)/python -m pytest $(if $(filter-out 1,$(PYTEST_WORKERS)),-n $(PYTEST_WORKERS) --dist worksteal,)
 
 test: lint typecheck pytest
 
