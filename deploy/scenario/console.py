@@ -126,8 +126,16 @@ def campaign_from_cli(
     with Progress(TextColumn("[bold]campaign"), BarColumn(), TextColumn("{task.completed}/"
                   "{task.total}"), TimeElapsedColumn(), console=console) as bar:  # fmt: skip
         task = bar.add_task("campaign", total=len(cells))
-        results = run_campaign(cells, workers=workers,
-                               on_result=lambda _r: bar.advance(task))  # fmt: skip
+        done = [0]
+
+        def finished(result: Any) -> None:
+            # One line a run as it ends, so that a long campaign can be followed in a log.
+            done[0] += 1
+            bar.console.print(f"[{done[0]}/{len(cells)}] {_result_line(result)}",
+                              markup=False, highlight=False, soft_wrap=True)  # fmt: skip
+            bar.advance(task)
+
+        results = run_campaign(cells, workers=workers, on_result=finished)
     summary = summarise(results)
     table = Table(title=f"campaign: {summary['runs']} runs, {summary['crashed']} crashed, "
                   f"{summary['unsafe']} unsafe")  # fmt: skip
@@ -154,6 +162,19 @@ def campaign_from_cli(
         write_summary(summary, json_path)
         console.print(f"summary written to {json_path}")
     return 0 if summary["crashed"] == 0 and summary["unsafe"] == 0 else 1
+
+
+def _result_line(result: Any) -> str:
+    """``obstacle seed=3: passed (RTF 14.2)``, or what went wrong."""
+    label = result.cell.label
+    if result.crashed:
+        return f"{label}: CRASHED ({result.error.strip().splitlines()[-1]})"
+    kpis = result.kpis
+    if result.unsafe:
+        return f"{label}: UNSAFE ({'; '.join(result.unsafe)})"
+    failed = [item["name"] for item in kpis["expectations"] if not item["ok"]]
+    verdict = "passed" if not failed else "failed: " + "; ".join(failed)
+    return f"{label}: {verdict} (RTF {kpis['real_time_factor']:.1f})"
 
 
 def _min_margin(results: list[Any], name: str) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -60,3 +61,6 @@ def test_a_campaign_over_worker_processes_writes_its_summary(tmp_path: Path) -> 
     summary = json.loads(out.read_text())
     assert summary["runs"] == 4 and summary["passed"] == 4 and summary["crashed"] == 0
     assert {cell["seed"] for cell in summary["cells"]} == {0, 1}
+    lines = re.findall(r"^\[\d/4\] (vc-[AB] seed=[01]): passed \(RTF [\d.]+\)$", result.output,
+                       re.MULTILINE)  # fmt: skip
+    assert sorted(lines) == ["vc-A seed=0", "vc-A seed=1", "vc-B seed=0", "vc-B seed=1"]
