@@ -79,6 +79,9 @@ def test_worked_example_over_udp_initialises_outputs_from_zero_and_is_acknowledg
                     encode_input(InputPacket(SensorType.STOP, 1000, ())), runner.input_address
                 )
                 thread.join(timeout=20.0)
+                # What the listener sent after the first ACK (on a loaded machine it may still
+                # have been working through the burst then) waits in the OBCU's socket.
+                obcu.poll()
         finally:
             stop.set()
             thread.join(timeout=5.0)
