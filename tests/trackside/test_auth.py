@@ -2,11 +2,19 @@
 
 from __future__ import annotations
 
+import json
+from typing import Any
+
 import pytest
 from fastapi.testclient import TestClient
 from sqlalchemy import create_engine, text
+from sqlalchemy.orm import Session
+from starlette.types import Message, Receive, Scope, Send
 
 from tests.trackside.conftest import ADMIN, MakeClient, login
+from trackside.config import Settings
+from trackside.main import create_app
+from trackside.services import users
 
 
 def test_token_for_the_bootstrapped_admin(client: TestClient) -> None:
@@ -108,3 +116,34 @@ def test_openapi_describes_every_route(client: TestClient) -> None:
         "/api/v1/users/me",
     ):
         assert path in paths
+
+
+def test_what_a_route_writes_is_committed_before_its_answer_is_sent(
+    database_url: str, zenoh_pair: tuple[Any, Any]
+) -> None:
+    """The console asks for the fleet the moment sign-in answers: the token must already be
+    committed then, or that request races the commit and gets a 401 (seen on a loaded CI host).
+    A second connection checks the token while the answer's body is being sent."""
+    settings = Settings(
+        database_url=database_url, admin_user=ADMIN[0], admin_password=ADMIN[1],
+    )  # fmt: skip
+    app = create_app(settings, zenoh_session=zenoh_pair[0])
+    engine = create_engine(database_url)
+    seen: list[str] = []
+
+    async def checking_app(scope: Scope, receive: Receive, send: Send) -> None:
+        async def checking_send(message: Message) -> None:
+            if message["type"] == "http.response.body" and message.get("body"):
+                token = json.loads(message["body"])["access_token"]
+                with Session(engine) as db:
+                    seen.append(users.resolve_token(db, token).username)
+            await send(message)
+
+        await app(scope, receive, checking_send if scope["type"] == "http" else send)
+
+    try:
+        with TestClient(checking_app) as client:
+            login(client, *ADMIN)
+    finally:
+        engine.dispose()
+    assert seen == [ADMIN[0]]

@@ -35,6 +35,9 @@ oauth2_scheme = OAuth2PasswordBearer(tokenUrl="/api/v1/auth/token")
 
 
 def get_db(request: Request) -> Iterator[Session]:
+    """One transaction per request, committed when the route function returns (``scope=
+    "function"`` below), so before the answer leaves: a client that sends its next request as
+    soon as it reads the answer (the console right after sign-in) sees what was written."""
     factory: sessionmaker[Session] = request.app.state.session_factory
     with factory() as db, db.begin():
         yield db
@@ -61,7 +64,7 @@ async def simulated_vehicles(request: Request) -> frozenset[str]:
     return frozenset() if operator is None else operator.operator.vehicles
 
 
-SessionDep = Annotated[Session, Depends(get_db)]
+SessionDep = Annotated[Session, Depends(get_db, scope="function")]
 CommandsDep = Annotated[CommandService, Depends(get_commands)]
 SimulatedDep = Annotated[frozenset[str], Depends(simulated_vehicles)]
 SettingsDep = Annotated[Settings, Depends(get_settings)]
