@@ -121,12 +121,16 @@ def test_shortening_behind_the_reported_front_end_is_refused(
     assert issued.status_code == 201
     with TypedPublisher(onboard, STATUS, vehicle="URV1") as publisher:
 
-        def refused() -> bool:
+        # Wait until the service holds the report; a shortening tried before it arrives would
+        # be granted and change the authority this test goes on to check.
+        def reported() -> bool:
             publisher.put(_status(700.0))
-            body = {"end_of_authority_m": 650.0}
-            return client.post(f"{MA}/shorten", json=body, headers=admin_headers).status_code == 409
+            status = client.get("/api/v1/vehicles/URV1", headers=admin_headers).json()["status"]
+            return status is not None and status["position_m"] == 700.0
 
-        assert wait_for(refused)
+        assert wait_for(reported)
+        behind = {"end_of_authority_m": 650.0}
+        assert client.post(f"{MA}/shorten", json=behind, headers=admin_headers).status_code == 409
     response = client.post(
         f"{MA}/shorten", json={"end_of_authority_m": 700.0}, headers=admin_headers
     )
