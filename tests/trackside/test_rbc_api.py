@@ -120,7 +120,6 @@ def test_shortening_behind_the_reported_front_end_is_refused(
     issued = client.post(MA, json=ISSUE | {"end_of_authority_m": 1500.0}, headers=admin_headers)
     assert issued.status_code == 201
     with TypedPublisher(onboard, STATUS, vehicle="URV1") as publisher:
-
         # Wait until the service holds the report; a shortening tried before it arrives would
         # be granted and change the authority this test goes on to check.
         def reported() -> bool:
