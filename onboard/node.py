@@ -195,10 +195,14 @@ class OnboardNode:
         self._commands = TypedQueryable(session, COMMAND, self._on_command, **chunks)
         self._journeys = TypedSubscriber(session, JOURNEY_PROFILE, vehicle=self.vehicle_id)
         self._journey_acks = TypedPublisher(session, JOURNEY_PROFILE_ACK, vehicle=self.vehicle_id)
-        self._status_acks = TypedSubscriber(session, STATUS_ACK, vehicle=self.vehicle_id)
         self._status_acked = threading.Event()
         self._ack_pending = False
-        self._status_acks_pushed = TypedSubscriber(
+        # One subscriber queues the acknowledgement and then wakes the lockstep barrier, so the
+        # barrier never wakes before the acknowledgement can be taken. With two subscribers (one
+        # to queue, one to wake), Zenoh ran their callbacks apart: the barrier could wake, the
+        # session task find nothing, and the report go unacknowledged past the trackside's
+        # response timeout (the session was lost in a fault-free lockstep run).
+        self._status_acks = TypedSubscriber(
             session,
             STATUS_ACK,
             on_message=lambda _k, _a: self._status_acked.set(),
@@ -653,7 +657,7 @@ class OnboardNode:
             self._termination_out.put(termination)
         self._commands.close()
         for closable in (
-            self._journeys, self._journey_acks, self._status_acks, self._status_acks_pushed,
+            self._journeys, self._journey_acks, self._status_acks,
             self._terminations, self._termination_out, self._authorities, self._restrictions,
             self._status,
             self._events, self._tracksides,

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+import threading
+
 import pytest
 import zenoh
 
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import SimClock
-from protocol import LivelinessWatcher, TypedSubscriber, request
+from protocol import LivelinessWatcher, TypedPublisher, TypedSubscriber, request
 from protocol import messages as m
-from protocol.registry import COMMAND, EVENT, STATUS
+from protocol.registry import COMMAND, EVENT, STATUS, STATUS_ACK
 from tests.conftest import wait_for
 from tests.operator import LockstepOperator
 from trackdb import TrackMap, load_seed_line
@@ -148,3 +150,34 @@ def test_bogie_fidelity_drives_through_the_vcu(
         assert wheel_speed == pytest.approx(truth.speed_mps, abs=0.1)  # rolling, no slip
     finally:
         node.close()
+
+
+def test_the_lockstep_barrier_wakes_only_once_the_acknowledgement_can_be_taken(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session], node: OnboardNode
+) -> None:
+    """The status barrier wakes on an STRAck; the session task then takes it from the queue. If
+    the wake came first (seen with one subscriber to queue and another to wake, whose callbacks
+    Zenoh ran apart), the report stayed unacknowledged and the session lapsed in a fault-free
+    run. Each wake must find its acknowledgement already received."""
+    trackside, _ = zenoh_pair
+    received_at_wake: list[int] = []
+    acks = node._status_acks
+
+    class Probe(threading.Event):
+        def set(self) -> None:
+            received_at_wake.append(acks.stats.received)
+            super().set()
+
+    node._status_acked = Probe()
+    with TypedPublisher(trackside, STATUS_ACK, vehicle="URV1") as publisher:
+        assert wait_for(lambda: (publisher.put(_ack(0)), bool(received_at_wake))[1])
+        sent = len(received_at_wake)
+        for seq in range(1, 51):
+            publisher.put(_ack(seq))
+        assert wait_for(lambda: len(received_at_wake) >= sent + 50)
+    woken = list(received_at_wake)
+    assert woken == list(range(1, len(woken) + 1))
+
+
+def _ack(seq: int) -> m.StatusAck:
+    return m.StatusAck(vehicle_id="URV1", seq=seq)
