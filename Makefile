@@ -49,6 +49,7 @@ bench: $(VENV)/.installed-test
 	$(BIN)/ato bench adf
 	$(BIN)/ato bench vc
 	$(BIN)/ato bench sfa
+	$(BIN)/ato bench run
 
 clean:
 	rm -rf $(VENV) .ato .mypy_cache .pytest_cache .ruff_cache

@@ -208,6 +208,24 @@ def campaign(
     ))  # fmt: skip
 
 
+@bench_app.command("run")
+def bench_run(
+    scenarios: Annotated[
+        list[str] | None,
+        typer.Argument(help="Scenario names or files (default: bologna-ring and "
+                       "milano-bologna-low-soc)."),
+    ] = None,
+    runs: Annotated[int, typer.Option(min=1, help="Runs per scenario.")] = 5,
+    seed: Annotated[int | None, typer.Option(help="Override the scenarios' seed.")] = None,
+) -> None:  # fmt: skip
+    """Whole-stack real-time factor in lockstep: `ato run --fast` again and again, median and
+    worst beside the target."""
+    from deploy.bench_run import DEFAULT_SCENARIOS
+    from deploy.bench_run import bench_run as run
+
+    run(scenarios or DEFAULT_SCENARIOS, runs=runs, seed=seed)
+
+
 @bench_app.command("trackdb")
 def bench_trackdb(
     count: Annotated[int, typer.Option(help="Calls per query type.")] = 20000,
