@@ -108,13 +108,13 @@ def run_once(scenario: str, *, seed: int | None = None, timeout_s: float = 3600.
 
 def summarise(scenario: str, samples: Sequence[RunSample]) -> ScenarioSummary:
     """The figures of one scenario's runs (those without ``kpis.json`` count as not run)."""
-    ran = [s for s in samples if s.kpis is not None and s.real_time_factor is not None]
-    factors = [s.real_time_factor for s in ran if s.real_time_factor is not None]
-    walls = [float(s.kpis["wall_time_s"]) for s in ran if s.kpis and "wall_time_s" in s.kpis]
+    ran = [(s, s.kpis) for s in samples if s.kpis is not None and s.real_time_factor is not None]
+    factors = [float(kpis["real_time_factor"]) for _, kpis in ran]
+    walls = [float(kpis["wall_time_s"]) for _, kpis in ran if "wall_time_s" in kpis]
     per_task: dict[str, list[float]] = {}
     shares: dict[str, list[float]] = {}
-    for sample in ran:
-        breakdown = (sample.kpis or {}).get("wall_time_breakdown") or {}
+    for _, kpis in ran:
+        breakdown = kpis.get("wall_time_breakdown") or {}
         for name, task in (breakdown.get("tasks") or {}).items():
             per_task.setdefault(name, []).append(float(task["mean_us"]))
             shares.setdefault(name, []).append(float(task["share"]))
@@ -122,13 +122,13 @@ def summarise(scenario: str, samples: Sequence[RunSample]) -> ScenarioSummary:
     return ScenarioSummary(
         scenario=scenario,
         runs=len(samples),
-        passed=sum(1 for s in ran if s.exit_code == 0 and (s.kpis or {}).get("passed") is True),
+        passed=sum(1 for s, kpis in ran if s.exit_code == 0 and kpis.get("passed") is True),
         failed_to_run=len(samples) - len(ran),
         factor_median=statistics.median(factors) if factors else None,
         factor_worst=min(factors) if factors else None,
         factor_best=max(factors) if factors else None,
         wall_median_s=statistics.median(walls) if walls else None,
-        sim_time_s=float(ran[0].kpis["sim_time_s"]) if ran and ran[0].kpis else None,
+        sim_time_s=float(ran[0][1]["sim_time_s"]) if ran else None,
         task_mean_us={name: statistics.median(per_task[name]) for name in order},
         target=TARGET_REAL_TIME_FACTORS.get(scenario),
     )
