@@ -11,9 +11,15 @@ Modules, each citing the DOMAIN.md section it follows:
 - :mod:`~onboard.etcs.supervision`: CSM, TSM, RSM, statuses and commands (§1.3);
 - :mod:`~onboard.etcs.modes`: the modes and their transition table (§1.6);
 - :mod:`~onboard.etcs.movement_authority`: MA, EoA, SvL, timers, Levels 1 and 2 (§1.7);
-- :mod:`~onboard.etcs.odometry`: the confidence interval ±(5 m + 5 %·s) (§6);
-- :mod:`~onboard.etcs.balises`: balise groups read from the track database (§1.7);
-- :mod:`~onboard.etcs.onboard`: :class:`EtcsOnboard`, which ties them together.
+- :mod:`~onboard.etcs.odometer`: the odometer on the wheel sensors: pulses, speed, A_est,
+  slip and slide, and its accuracy law (§6);
+- :mod:`~onboard.etcs.odometry`: the confidence interval, SUBSET-041's ±(5 m + 5 %·s) the
+  bound (§6);
+- :mod:`~onboard.etcs.balises`: balise groups read from the track database or the reader (§1.7);
+- :mod:`~onboard.etcs.linking`: linked groups' expectation windows and Q_LINKREACTION (§1.6 [17]);
+- :mod:`~onboard.etcs.localisation`: the odometer's position, the interval, the LRBG;
+- :mod:`~onboard.etcs.onboard`: :class:`EtcsOnboard`, which ties them together, and
+  :mod:`~onboard.etcs.output`: :class:`EtcsOutput`, what each cycle gives.
 
 No Zenoh, no threads, no wall clock: every call takes ``now_s``. The errors are listed in one
 place, :mod:`onboard.etcs._exceptions`, and re-exported here.
@@ -52,6 +58,7 @@ from onboard.etcs.braking import (
     speed_measurement_accuracy_mps,
 )
 from onboard.etcs.deceleration import DecelerationProfile
+from onboard.etcs.linking import LinkingEvent, LinkingFault
 from onboard.etcs.modes import MODE_TRANSITIONS, ModeChange, ModeCondition, ModeTransition
 from onboard.etcs.movement_authority import (
     AuthorityInForce,
@@ -61,8 +68,22 @@ from onboard.etcs.movement_authority import (
     MovementAuthority,
     OnSightArea,
 )
-from onboard.etcs.odometry import ConfidenceInterval, Odometry, OdometryAccuracy
-from onboard.etcs.onboard import STANDSTILL_SPEED_MPS, EtcsOnboard, EtcsOutput
+from onboard.etcs.odometer import (
+    URV_ODOMETER,
+    Odometer,
+    OdometerOutput,
+    OdometerParameters,
+    OdometerPosition,
+    WheelAdhesion,
+)
+from onboard.etcs.odometry import (
+    SUBSET_041_ACCURACY,
+    ConfidenceInterval,
+    Odometry,
+    OdometryAccuracy,
+)
+from onboard.etcs.onboard import STANDSTILL_SPEED_MPS, EtcsOnboard
+from onboard.etcs.output import EtcsOutput
 from onboard.etcs.supervision import BrakeCommands, Monitoring, SupervisionResult
 from onboard.etcs.values import (
     FIXED_VALUES,
@@ -81,6 +102,8 @@ __all__ = [
     "MODE_TRANSITIONS",
     "NATIONAL_DEFAULTS",
     "STANDSTILL_SPEED_MPS",
+    "SUBSET_041_ACCURACY",
+    "URV_ODOMETER",
     "URV_TRAIN_DATA",
     "AuthorityInForce",
     "BaliseGroupReading",
@@ -100,6 +123,8 @@ __all__ = [
     "FixedValues",
     "Limit",
     "LimitDistances",
+    "LinkingEvent",
+    "LinkingFault",
     "MaChange",
     "MaSection",
     "ModeChange",
@@ -109,6 +134,10 @@ __all__ = [
     "MovementAuthority",
     "MovementAuthorityError",
     "NationalValues",
+    "Odometer",
+    "OdometerOutput",
+    "OdometerParameters",
+    "OdometerPosition",
     "Odometry",
     "OdometryAccuracy",
     "OnSightArea",
@@ -120,6 +149,7 @@ __all__ = [
     "TrainData",
     "TrainDataError",
     "TransitionRefusedError",
+    "WheelAdhesion",
     "braking_times",
     "dv_ebi_mps",
     "dv_sbi_mps",

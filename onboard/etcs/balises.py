@@ -1,10 +1,12 @@
-"""Reading balise groups from the track database (SUBSET-026 §3.4, §7–8; DOMAIN.md §1.7).
+"""Reading balise groups (SUBSET-026 §3.4, §7–8; DOMAIN.md §1.7).
 
-Passing a group yields a :class:`BaliseGroupReading`: the group's packets, decoded into what the
-onboard uses (a Level 1 MA, how far the SSP and gradient reach, a level transition, the groups
-linked next), and the :class:`TelegramHeader` the Vital Control forwards to the ATO-OB (seed
-004: the VC decodes the BTM telegram and sends its header on). The onboard then makes the group
-its LRBG and relocates the odometry on it.
+A group comes from the balise reader (a :class:`onboard.plant.readings.BaliseDetection`, on
+the sensor path) or, on the given-motion path, from the track database between two odometer
+positions (:func:`balise_groups_passed`). Passing a group yields a :class:`BaliseGroupReading`:
+the group's packets, decoded into what the onboard uses (a Level 1 MA, how far the SSP and
+gradient reach, a level transition, the groups linked next), and the :class:`TelegramHeader`
+the Vital Control forwards to the ATO-OB (seed 004: the VC decodes the BTM telegram and sends
+its header on). The onboard then makes the group its LRBG and relocates the odometry on it.
 
 ⚠ trackdb holds no balise count per group: a group reads as one balise (N_PIG 0, N_TOTAL 0).
 M_VERSION is 2.0 (32) by default; NID_C is the line's country code, 0 by default.

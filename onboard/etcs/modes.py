@@ -14,6 +14,7 @@ no.  from                        to     condition
 [12] FS OS AD                    TR     Level 1: the min-safe front end passes the EoA
 [16] FS OS AD                    TR     Level 2: the min-safe front end passes the EoA
 [11] FS OS AD                    TR     a balise group at or beyond the EoA read in RSM
+[17] FS OS AD                    TR     linking reaction "train trip" (a linked group missed)
 [20] SR FS OS AD                 TR     unconditional emergency stop
 [42] SR                          TR     the SR distance passed
 [7]  TR                          PT     trip acknowledged at standstill
@@ -74,6 +75,8 @@ class ModeCondition(StrEnum):
     INSERTED = "inserted"
     END_OF_AUTHORITY_PASSED = "end_of_authority_passed"
     BALISE_GROUP_AT_END_OF_AUTHORITY = "balise_group_at_end_of_authority"
+    LINKING_REACTION = "linking_reaction"
+    """A linked balise group not read where expected, with Q_LINKREACTION "train trip"."""
     EMERGENCY_STOP = "emergency_stop"
     STAFF_RESPONSIBLE_DISTANCE_PASSED = "staff_responsible_distance_passed"
     TRIP_ACKNOWLEDGED = "trip_acknowledged"
@@ -128,6 +131,8 @@ MODE_TRANSITIONS: tuple[ModeTransition, ...] = (
                    priority=4, condition_number=16, levels=frozenset({EtcsLevel.LEVEL_2})),
     ModeTransition(sources=_SUPERVISED, target=EtcsMode.TR,
                    condition=_C.BALISE_GROUP_AT_END_OF_AUTHORITY, priority=4, condition_number=11),
+    ModeTransition(sources=_SUPERVISED, target=EtcsMode.TR, condition=_C.LINKING_REACTION,
+                   priority=4, condition_number=17),
     ModeTransition(sources=_SUPERVISED | {EtcsMode.SR}, target=EtcsMode.TR,
                    condition=_C.EMERGENCY_STOP, priority=4, condition_number=20),
     ModeTransition(sources=_modes(EtcsMode.SR), target=EtcsMode.TR,

@@ -1,10 +1,20 @@
 """EtcsOnboard: the emulated ETCS onboard, a deterministic library object called with the time.
 
-Each cycle, :meth:`EtcsOnboard.step` takes the time, the odometer's position (a chainage) and
-the speed, and
+A cycle comes one of two ways:
 
-1. reads the balise groups passed since the last cycle from the TrackMap (unless the caller
-   passes them itself with :meth:`EtcsOnboard.pass_balise_group`);
+- :meth:`EtcsOnboard.step_on_sensors` (the train's own sensors, the onboard built with an
+  ``odometer``): the wheel readings and balise detections since the last cycle. The odometer
+  (:mod:`onboard.etcs.odometer`) counts the pulses into distance, speed, A_est and slip/slide;
+  each detected group is read at the odometer's position interpolated to its detection time.
+  Nothing is read from the TrackMap at the odometer's position.
+- :meth:`EtcsOnboard.step` (given motion): the odometer's position (a chainage), the speed and
+  A_est; the balise groups passed are read from the TrackMap (unless the caller passes them
+  with :meth:`EtcsOnboard.pass_balise_group`).
+
+Then it
+
+1. relocates the odometry at each group read and checks the linked groups' expectation
+   windows (:mod:`onboard.etcs.linking`), taking the linking reaction of a group missed;
 2. updates the odometry's confidence interval (:mod:`onboard.etcs.odometry`);
 3. applies level transitions due and runs the MA's timers;
 4. takes the mode transitions whose conditions hold (:mod:`onboard.etcs.modes`);
@@ -37,7 +47,7 @@ end), both of which the curves supervise.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Sequence
 
 from onboard.etcs._exceptions import EtcsInputError, TransitionRefusedError
 from onboard.etcs._motion import MotionSupervisor
@@ -49,6 +59,8 @@ from onboard.etcs.balises import (
     read_balise_group,
 )
 from onboard.etcs.braking import BrakingModel
+from onboard.etcs.linking import LinkingEvent, LinkingFault
+from onboard.etcs.localisation import Localisation, OdometerPoint
 from onboard.etcs.modes import ModeChange, ModeCondition, ModeTransition, select_transition
 from onboard.etcs.movement_authority import (
     AuthorityInForce,
@@ -57,7 +69,9 @@ from onboard.etcs.movement_authority import (
     MovementAuthority,
     TrackDescription,
 )
-from onboard.etcs.odometry import ConfidenceInterval, Odometry, OdometryAccuracy
+from onboard.etcs.odometer import Odometer, OdometerParameters
+from onboard.etcs.odometry import ConfidenceInterval, OdometryAccuracy
+from onboard.etcs.output import EtcsOutput
 from onboard.etcs.supervision import Demand, InterventionLatch, Monitoring, SupervisionResult
 from onboard.etcs.values import (
     FIXED_VALUES,
@@ -67,8 +81,10 @@ from onboard.etcs.values import (
     NationalValues,
     TrainData,
 )
+from onboard.plant.readings import BaliseDetection, WheelReading
 from protocol.messages import EtcsMode, SupervisionStatus
 from trackdb import BaliseGroup, TrackMap
+from trackdb.schema import LinkReaction
 
 __all__ = ["STANDSTILL_SPEED_MPS", "EtcsOnboard", "EtcsOutput"]
 
@@ -76,39 +92,6 @@ STANDSTILL_SPEED_MPS = 0.05
 """At or below this speed [m/s] the train is at standstill."""
 _SUPERVISED_MODES = frozenset({EtcsMode.FS, EtcsMode.OS, EtcsMode.AD})
 _STANDSTILL_MODES = frozenset({EtcsMode.SB, EtcsMode.PT})
-
-
-@dataclass(frozen=True, kw_only=True)
-class EtcsOutput:
-    """One cycle's outcome: mode, supervision, the ADF's constraints and the commands."""
-
-    time_s: float
-    mode: EtcsMode
-    level: EtcsLevel
-    supervision_status: SupervisionStatus
-    monitoring: Monitoring
-    permitted_speed_mps: float
-    """The speed not to exceed now [m/s]: 0 in SB, PT and TR; unsupervised MRSP in IS."""
-    ceiling_speed_mps: float
-    """The MRSP under the train [m/s], with the mode's limit."""
-    target_speed_mps: float | None
-    target_distance_m: float | None
-    """From the relevant front end to the most restrictive target [m]."""
-    release_speed_mps: float | None
-    end_of_authority_m: float | None
-    """The EoA's chainage [m]."""
-    end_of_authority_distance_m: float | None
-    """From the estimated front end to the EoA [m]."""
-    supervised_location_distance_m: float | None
-    """From the max-safe front end to the SvL [m]."""
-    traction_cut: bool
-    service_brake: bool
-    emergency_brake: bool
-    estimated_front_m: float
-    """The estimated front end's chainage [m]."""
-    odometry: ConfidenceInterval
-    """The confidence interval, in the onboard's track coordinate (unwrapped on a ring)."""
-    lrbg_id: int | None
 
 
 class EtcsOnboard:
@@ -120,17 +103,24 @@ class EtcsOnboard:
         The line: MRSP, gradients, balise groups.
     train, national, fixed : TrainData, NationalValues, FixedValues
         The URV and the A.3 defaults by default.
-    odometry : OdometryAccuracy
-        The odometer's error law; ±(5 m + 5 %) by default.
+    odometry : OdometryAccuracy, optional
+        The odometer's error law: the ``odometer``'s own law when one is given
+        (:meth:`OdometerParameters.accuracy`), SUBSET-041's ±(5 m + 5 %) otherwise.
     level : EtcsLevel, optional
         The starting level; the line's by default.
     position_m : float
-        Odometer chainage [m] at start; its accuracy is Q_NVLOCACC until a balise group.
+        The front end's chainage [m] at start: the odometer's zero (on the sensor path, where
+        the first wheel reading finds the train); its accuracy is Q_NVLOCACC until a balise
+        group.
     start_s : float
         The time [s] at start; every call's ``now_s`` must not go back from the last.
-    read_balise_groups : bool
-        Read the groups passed from the TrackMap in :meth:`step`; False when the caller passes
-        them (as the VC forwards BTM telegrams).
+    read_balise_groups : bool, optional
+        Read the groups passed from the TrackMap in :meth:`step` (the default without an
+        odometer); False when the caller passes them (as the VC forwards BTM telegrams). On
+        the sensor path groups come from balise detections only.
+    odometer : OdometerParameters, optional
+        The wheel-sensor odometer: given, the onboard runs on the train's sensors
+        (:meth:`step_on_sensors`), and :meth:`step` and :meth:`pass_balise_group` are refused.
     """
 
     def __init__(
@@ -144,33 +134,37 @@ class EtcsOnboard:
         level: EtcsLevel | None = None,
         position_m: float = 0.0,
         start_s: float = 0.0,
-        read_balise_groups: bool = True,
+        read_balise_groups: bool | None = None,
+        odometer: OdometerParameters | None = None,
     ) -> None:
         if not (math.isfinite(position_m) and math.isfinite(start_s)):
             raise EtcsInputError("start position and time must be finite")
+        if odometer is not None and read_balise_groups:
+            raise EtcsInputError("on the sensor path balise groups come from detections only")
         self.track_map = track_map
         self.braking = BrakingModel(train, national=national, fixed=fixed)
         self.train, self.national, self.fixed = train, national, fixed
         self.level = EtcsLevel(track_map.line.etcs_level) if level is None else level
-        self.read_balise_groups = read_balise_groups
+        self.read_balise_groups = odometer is None and read_balise_groups is not False
+        self.odometer = None if odometer is None else Odometer(odometer, start_s=start_s)
         self.mode_changes: list[ModeChange] = []
+        self.linking_events: list[LinkingEvent] = []
         self.last_balise_reading: BaliseGroupReading | None = None
         self.service_brake_interventions = 0
         self.emergency_brake_interventions = 0
         self._mode = EtcsMode.SB
         self._time_s = start_s
-        self._odometer_chainage_m = position_m
-        self._odometer_m = position_m
-        self._odometry = Odometry(
-            odometry or OdometryAccuracy(),
-            odometer_m=position_m,
+        if odometry is None:
+            odometry = OdometryAccuracy() if odometer is None else odometer.accuracy()
+        self._where = Localisation(
+            track_map,
+            odometry,
+            position_m=position_m,
             location_accuracy_m=national.q_nvlocacc_m,
+            odometer=self.odometer,
         )
-        self._interval = self._odometry.interval
-        self._speed_mps = 0.0
-        self._acceleration_mps2 = 0.0
-        self._lrbg_id: int | None = None
-        self._linked: dict[int, LinkedGroup] = {}
+        self._linking_brake = False
+        self._unreported: list[LinkingEvent] = []
         self._readings = 0
         self._authority: AuthorityInForce | None = None
         self._track_description = TrackDescription()
@@ -202,7 +196,11 @@ class EtcsOnboard:
     @property
     def odometry(self) -> ConfidenceInterval:
         """The confidence interval after the last cycle or balise group."""
-        return self._interval
+        return self._where.interval
+
+    @property
+    def _interval(self) -> ConfidenceInterval:
+        return self._where.interval
 
     def intervention_speed_mps(self) -> float:
         """The speed at which the last cycle's supervision would intervene [m/s]; inf when
@@ -212,7 +210,7 @@ class EtcsOnboard:
     @property
     def standstill(self) -> bool:
         """Whether the last speed given was a standstill."""
-        return self._speed_mps <= STANDSTILL_SPEED_MPS
+        return self._where.speed_mps <= STANDSTILL_SPEED_MPS
 
     # -- the cycle ------------------------------------------------------------------------------
 
@@ -232,21 +230,65 @@ class EtcsOnboard:
         acceleration_mps2 : float
             The estimated acceleration [m/s²], A_est of the EBI.
         """
+        self._refuse_on_sensors("step")
         self._check_time(now_s)
         if not (math.isfinite(position_m) and math.isfinite(acceleration_mps2)):
             raise EtcsInputError("position and acceleration must be finite")
         if not (math.isfinite(speed_mps) and speed_mps >= 0.0):
             raise EtcsInputError(f"speed {speed_mps} m/s must be finite and ≥ 0")
-        previous_m = self._odometer_m
-        self._odometer_m = self._unwrap(position_m)
-        self._odometer_chainage_m = position_m
-        self._speed_mps, self._acceleration_mps2 = speed_mps, acceleration_mps2
+        previous_m = self._where.odometer_m
+        self._where.move(position_m, speed_mps, acceleration_mps2)
         if self.read_balise_groups:
             for group, odometer_m in balise_groups_passed(
-                self.track_map, previous_m, self._odometer_m
+                self.track_map, previous_m, self._where.odometer_m
             ):
-                self._read(group, now_s, odometer_m=odometer_m)
-        self._interval = self._odometry.update(self._odometer_m)
+                self._read(group, now_s, time_s=now_s, at=OdometerPoint(odometer_m=odometer_m))
+        return self._cycle(now_s)
+
+    def step_on_sensors(
+        self,
+        now_s: float,
+        wheels: Sequence[WheelReading],
+        balises: Sequence[BaliseDetection] = (),
+    ) -> EtcsOutput:
+        """One supervision cycle at ``now_s`` [s] on the train's own sensors.
+
+        Parameters
+        ----------
+        now_s : float
+            The time [s]; not before the last call's.
+        wheels : sequence of WheelReading
+            The axle-end readings since the last cycle, in time order (every 10 ms). The first
+            one the onboard ever gets fixes the odometer's zero at the start ``position_m``.
+        balises : sequence of BaliseDetection
+            The balise groups the reader located since the last cycle. Each is read at the
+            odometer's position interpolated to its ``time_s`` and relocates the odometry
+            there, with its Q_LOCACC (or Q_NVLOCACC) and the reader's location error.
+        """
+        odometer = self.odometer
+        if odometer is None:
+            raise EtcsInputError("step_on_sensors needs an onboard built with an odometer")
+        self._check_time(now_s)
+        detections = sorted(balises, key=lambda detection: detection.time_s)
+        if not all(math.isfinite(detection.time_s) for detection in detections):
+            raise EtcsInputError("balise detection times must be finite")
+        self._where.sense(odometer, wheels)
+        for detection in detections:
+            self._read(
+                detection.group,
+                now_s,
+                time_s=detection.time_s,
+                at=self._where.detection_position(odometer, detection.time_s),
+                reader_error_m=odometer.parameters.balise_location_error_m,
+            )
+        return self._cycle(now_s)
+
+    def _cycle(self, now_s: float) -> EtcsOutput:
+        """The cycle once the odometer has moved and the groups are read."""
+        self._where.update()
+        if self._mode is not EtcsMode.IS:
+            for group, fault in self._where.missed_groups():
+                self._linking_fault(group, fault, now_s)
         self._apply_level_transitions()
         if self._authority is not None:
             self._authority.update(
@@ -289,7 +331,7 @@ class EtcsOnboard:
             raise EtcsInputError("a track description needs a positive finite length")
         if self._mode in (EtcsMode.TR, EtcsMode.IS):
             return MaChange.REJECTED
-        reference_m = self._locate(authority.reference_m)
+        reference_m = self._where.locate(authority.reference_m)
         change = self._accept(authority, now_s, reference_location_m=reference_m)
         if track_description_m is None:
             track_description_m = authority.end_of_authority_m + max(
@@ -305,10 +347,13 @@ class EtcsOnboard:
         self, group: BaliseGroup, now_s: float, *, position_m: float | None = None
     ) -> BaliseGroupReading:
         """The front end passed ``group`` when the odometer read ``position_m`` (chainage)."""
+        self._refuse_on_sensors("pass_balise_group")
         self._check_time(now_s)
-        odometer_m = self._odometer_m if position_m is None else self._unwrap(position_m)
-        reading = self._read(group, now_s, odometer_m=odometer_m)
-        self._interval = self._odometry.update(self._odometer_m)
+        odometer_m = (
+            self._where.odometer_m if position_m is None else self._where.unwrap(position_m)
+        )
+        reading = self._read(group, now_s, time_s=now_s, at=OdometerPoint(odometer_m=odometer_m))
+        self._where.update()
         self._evaluate_modes(now_s)
         self._events.clear()
         return reading
@@ -354,26 +399,14 @@ class EtcsOnboard:
 
     # -- internals: time, coordinates, events --------------------------------------------------
 
+    def _refuse_on_sensors(self, call: str) -> None:
+        if self.odometer is not None:
+            raise EtcsInputError(f"{call} gives motion; this onboard runs on its sensors")
+
     def _check_time(self, now_s: float) -> None:
         if not math.isfinite(now_s) or now_s < self._time_s:
             raise EtcsInputError(f"time {now_s} s is not finite or before {self._time_s} s")
         self._time_s = now_s
-
-    def _unwrap(self, chainage_m: float) -> float:
-        """The odometer chainage as a track location, unwrapped near the last one."""
-        if not self.track_map.line.ring:
-            return chainage_m
-        length_m = self.track_map.length_m
-        delta_m = (chainage_m - self._odometer_chainage_m + length_m / 2.0) % length_m
-        return self._odometer_m + delta_m - length_m / 2.0
-
-    def _locate(self, chainage_m: float) -> float:
-        """A chainage as the track location nearest the estimated front end."""
-        if not self.track_map.line.ring:
-            return chainage_m
-        length_m = self.track_map.length_m
-        near_m = self._interval.estimated_front_m
-        return chainage_m + length_m * round((near_m - chainage_m) / length_m)
 
     def _event(self, condition: ModeCondition, now_s: float) -> None:
         self._events.add(condition)
@@ -382,13 +415,23 @@ class EtcsOnboard:
 
     # -- internals: balise groups, MA, track description ---------------------------------------
 
-    def _read(self, group: BaliseGroup, now_s: float, *, odometer_m: float) -> BaliseGroupReading:
-        location_m = self._locate(group.position_m)
-        link = self._linked.get(group.id)
+    def _read(
+        self,
+        group: BaliseGroup,
+        now_s: float,
+        *,
+        time_s: float,
+        at: OdometerPoint,
+        reader_error_m: float = 0.0,
+    ) -> BaliseGroupReading:
+        """Read ``group`` found at ``time_s`` [s], when the odometer was ``at``; the reader's
+        location error [m] adds to the group's accuracy."""
+        location_m = self._where.locate(group.position_m)
+        link = self._where.linking.announcement(group.id)
         reading = read_balise_group(
             group,
             location_m=location_m,
-            time_s=now_s,
+            time_s=time_s,
             linked=link is not None,
             message_counter=self._readings,
         )
@@ -397,12 +440,15 @@ class EtcsOnboard:
         if self._mode is EtcsMode.IS:
             return reading
         accuracy_m = self.national.q_nvlocacc_m if link is None else link.location_accuracy_m
-        self._odometry.reset(
-            location_m=location_m, odometer_m=odometer_m, location_accuracy_m=accuracy_m
+        faults = self._where.relocate(
+            group.id,
+            location_m,
+            at=at,
+            location_accuracy_m=accuracy_m + reader_error_m,
+            linked_groups=reading.linked_groups,
         )
-        self._interval = self._odometry.update(self._odometer_m)
-        self._lrbg_id = group.id
-        self._linked = {linked.balise_group_id: linked for linked in reading.linked_groups}
+        for linked, fault in faults:
+            self._linking_fault(linked, fault, now_s)
         if self._mode is EtcsMode.TR:
             return reading
         if reading.static_speed_profile_end_m is not None:
@@ -423,6 +469,27 @@ class EtcsOnboard:
         ):
             self._events.add(ModeCondition.BALISE_GROUP_AT_END_OF_AUTHORITY)
         return reading
+
+    def _linking_fault(self, group: LinkedGroup, fault: LinkingFault, now_s: float) -> None:
+        """A linked group not read where expected: its reaction in FS, OS and AD."""
+        applied = self._mode in _SUPERVISED_MODES
+        event = LinkingEvent(
+            time_s=now_s,
+            balise_group_id=group.balise_group_id,
+            expected_location_m=group.location_m,
+            location_accuracy_m=group.location_accuracy_m,
+            fault=fault,
+            reaction=group.reaction,
+            applied=applied,
+        )
+        self.linking_events.append(event)
+        self._unreported.append(event)
+        if not applied:
+            return
+        if group.reaction is LinkReaction.TRAIN_TRIP:
+            self._events.add(ModeCondition.LINKING_REACTION)
+        elif group.reaction is LinkReaction.SERVICE_BRAKE:
+            self._linking_brake = True
 
     def _accept(
         self, authority: MovementAuthority, now_s: float, *, reference_location_m: float
@@ -516,6 +583,7 @@ class EtcsOnboard:
             self._authority = None
             self._track_description.clear()
             self._automatic_driving_requested = False
+            self._linking_brake = False
             self._events.clear()
         if target is EtcsMode.IS:
             self._latch.reset()
@@ -547,7 +615,7 @@ class EtcsOnboard:
             result = self._idle_result(self._motion.ceiling_mps(self._interval, math.inf))
         elif mode in _SUPERVISED_MODES or mode is EtcsMode.SR:
             result = self._supervise_motion(mode)
-            self._latch_commands(result.demand, forced=False)
+            self._latch_commands(self._with_linking_brake(result.demand), forced=False)
         else:
             forced = mode is EtcsMode.TR
             if mode in _STANDSTILL_MODES:
@@ -559,6 +627,21 @@ class EtcsOnboard:
             self._latch_commands(result.demand, forced=forced)
         self._result = result
         return result
+
+    def _with_linking_brake(self, demand: Demand) -> Demand:
+        """The linking reaction's service brake (the EB without one), held to standstill."""
+        if self._linking_brake and self.standstill:
+            self._linking_brake = False
+        if not self._linking_brake:
+            return demand
+        service = self.train.service_brake_available
+        return demand.combined(
+            Demand(
+                status=SupervisionStatus.INTERVENTION,
+                service_brake=service,
+                emergency_brake=not service,
+            )
+        )
 
     def _latch_commands(self, demand: Demand, *, forced: bool) -> None:
         before = self._latch.commands
@@ -585,8 +668,8 @@ class EtcsOnboard:
             release_mps = self._authority.release_speed_mps
         return self._motion.supervise(
             interval=self._interval,
-            speed_mps=self._speed_mps,
-            acceleration_mps2=self._acceleration_mps2,
+            speed_mps=self._where.speed_mps,
+            acceleration_mps2=self._where.acceleration_mps2,
             limit_mps=self._mode_limit_mps(mode),
             authority_m=authority_m,
             release_speed_mps=release_mps,
@@ -623,5 +706,13 @@ class EtcsOnboard:
             emergency_brake=commands.emergency_brake,
             estimated_front_m=self.track_map.normalise(interval.estimated_front_m),
             odometry=interval,
-            lrbg_id=self._lrbg_id,
+            lrbg_id=self._where.lrbg_id,
+            estimated_speed_mps=self._where.speed_mps,
+            estimated_acceleration_mps2=self._where.acceleration_mps2,
+            wheel_adhesion=self._where.adhesion,
+            linking_events=self._take_unreported(),
         )
+
+    def _take_unreported(self) -> tuple[LinkingEvent, ...]:
+        events, self._unreported = tuple(self._unreported), []
+        return events
