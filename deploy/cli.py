@@ -220,8 +220,8 @@ def bench_run(
 ) -> None:  # fmt: skip
     """Whole-stack real-time factor in lockstep: `ato run --fast` again and again, median and
     worst beside the target."""
-    from deploy.bench_run import DEFAULT_SCENARIOS
-    from deploy.bench_run import bench_run as run
+    from deploy.bench.run_bench import DEFAULT_SCENARIOS
+    from deploy.bench.run_bench import bench_run as run
 
     run(scenarios or DEFAULT_SCENARIOS, runs=runs, seed=seed)
 
@@ -231,7 +231,7 @@ def bench_trackdb(
     count: Annotated[int, typer.Option(help="Calls per query type.")] = 20000,
 ) -> None:
     """TrackMap point queries and GPS projection on milano-bologna and bologna-ring."""
-    from deploy.bench_trackdb import bench_trackdb as run
+    from deploy.bench.trackdb_bench import bench_trackdb as run
 
     run(count=count)
 
@@ -245,7 +245,7 @@ def bench_plant(
     ] = None,
 ) -> None:
     """Bogie-model real-time factor over the 200 km mission; point-mass step cost."""
-    from deploy.bench_plant import bench_plant as run
+    from deploy.bench.plant_bench import bench_plant as run
 
     run(distance_km=distance_km, plots_dir=plots)
 
@@ -257,7 +257,7 @@ def bench_adf(
     ] = None,
 ) -> None:
     """Plan energies, the RD → AD → RD hand-over, NMPC solve times (ours against IPOPT)."""
-    from deploy.bench_adf import bench_adf as run
+    from deploy.bench.adf_bench import bench_adf as run
 
     run(plots_dir=plots)
 
@@ -273,7 +273,7 @@ def bench_vc(
     ] = None,
 ) -> None:  # fmt: skip
     """VC tasks A/B/C: execution time over 10⁶ runs, lateness at 2 ms in real time, misses."""
-    from deploy.bench_vc import bench_vc as run
+    from deploy.bench.vc_bench import bench_vc as run
 
     if seconds <= 0 or runs < 0:
         raise typer.BadParameter("--seconds must be positive and --runs not negative")
@@ -290,7 +290,7 @@ def bench_sfa(
     fuzz: Annotated[int, typer.Option(help="Fuzz datagrams.")] = 100_000,
 ) -> None:
     """Sensor fusion: accuracy on both lines, fuzzing, IMU cost and UDP throughput."""
-    from deploy.bench_sfa import bench_sfa as run
+    from deploy.bench.sfa_bench import bench_sfa as run
 
     if ring_s < 130 or milano_s < 130 or fuzz < 1:
         raise typer.BadParameter("drives must last ≥ 130 s and --fuzz be positive")
@@ -339,7 +339,7 @@ def bench_trackside(
     sockets: Annotated[int, typer.Option(min=1, help="Per-vehicle WebSocket clients.")] = 10,
 ) -> None:
     """ATO-TS with a simulated fleet and REST load: REST and status-to-browser p50/p99."""
-    from deploy.bench_trackside import bench_trackside as run
+    from deploy.bench.trackside_bench import bench_trackside as run
 
     run(vehicles=vehicles, seconds=seconds, rate_hz=rate, sockets=sockets)
 
@@ -350,7 +350,7 @@ def bench_zenoh(
     warmup: Annotated[int, typer.Option(help="Commands before measuring.")] = 200,
 ) -> None:
     """Trackside→onboard command round trip, in-process and across processes."""
-    from deploy.bench import bench_zenoh as run
+    from deploy.bench.zenoh_bench import bench_zenoh as run
 
     run(count=count, warmup=warmup)
 

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 if TYPE_CHECKING:
-    from onboard.sfa import DriveSettings
+    from deploy.bench.sfa_drive import DriveSettings
     from trackdb import TrackMap
 
 __all__ = ["sfa_app"]
@@ -31,7 +31,7 @@ SeedOption = Annotated[int, typer.Option("--seed", help="Seed of the emulator's 
 
 def _address(text: str) -> tuple[str, int]:
     from onboard.sfa import AddressError
-    from onboard.sfa.runner import parse_address
+    from onboard.sfa.sockets import parse_address
 
     try:
         return parse_address(text)
@@ -57,7 +57,7 @@ def listen(
     """Run the sensor-fusion listener until STOP (exit 0)."""
     from deploy.processes import stop_on_signals
     from onboard.sfa import ListenerCore
-    from onboard.sfa.runner import ListenerRunner
+    from onboard.sfa.sockets import ListenerRunner
 
     core = ListenerCore(_track_map(line))
     stop = threading.Event()
@@ -91,7 +91,8 @@ def _settings(
     record: bool = False,
 ) -> DriveSettings:
     """The drive the options describe; bad options become ``typer.BadParameter``."""
-    from onboard.sfa import DriveSettings, LinkFaults
+    from deploy.bench.sfa_drive import DriveSettings
+    from onboard.sfa import LinkFaults
 
     _track_map(line)
     if duration <= 0 or cruise_kmh <= 0:
@@ -118,7 +119,7 @@ def emulate(
     seed: SeedOption = 0,
 ) -> None:
     """Send an emulated drive's INPUT datagrams (GROUND_TRUTH … STOP) over UDP."""
-    from onboard.sfa.runner import send_drive
+    from deploy.bench.sfa_emulator import send_drive
 
     if speed < 0:
         raise typer.BadParameter("--speed must not be negative")
@@ -138,7 +139,8 @@ def record(
     seed: SeedOption = 0,
 ) -> None:
     """Record an emulated drive's datagrams, arrival times and truth (lockstep)."""
-    from onboard.sfa import RecordingError, run_lockstep
+    from deploy.bench.sfa_lockstep import run_lockstep
+    from deploy.bench.sfa_recording import RecordingError
 
     result = run_lockstep(_settings(line, duration, cruise_kmh, loss, reorder, seed, record=True))
     if result.recording is None:
@@ -163,8 +165,9 @@ def replay(
     ] = 0.05,
 ) -> None:
     """Replay a recording faster than real time; print errors against the truth."""
-    from onboard.sfa import ALL_SENSORS, FilterConfig, ListenerConfig, Recording, RecordingError
-    from onboard.sfa import replay as run_replay
+    from deploy.bench.sfa_recording import Recording, RecordingError
+    from deploy.bench.sfa_recording import replay as run_replay
+    from onboard.sfa import ALL_SENSORS, FilterConfig, ListenerConfig
 
     chosen = frozenset(name.strip() for name in sensors.split(",") if name.strip())
     if not chosen <= ALL_SENSORS:

@@ -25,6 +25,7 @@ from protocol import (
 from protocol import messages as m
 from protocol.registry import ALIVE_ONBOARD, COMMAND
 from protocol.router import run_router
+from protocol.units import MPS_PER_KMH
 
 __all__ = ["DEMO_PASSWORD", "DEMO_USER", "DEMO_VEHICLE", "run_demo"]
 
@@ -32,7 +33,7 @@ DEMO_USER = "demo"
 DEMO_PASSWORD = "ato-demo"
 DEMO_VEHICLE = "URV1"
 DEMO_ROUTER = "tcp/127.0.0.1:7447"
-DEMO_TARGET_SPEED_MPS = 30.0 / 3.6
+DEMO_TARGET_SPEED_MPS = 30.0 * MPS_PER_KMH
 
 _log = logging.getLogger(__name__)
 

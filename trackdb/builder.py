@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Self
 
+from protocol.units import MPS_PER_KMH
 from trackdb.schema import (
     BaliseGroup,
     BalisePacket,
@@ -33,7 +34,6 @@ from trackdb.schema import (
 __all__ = ["EARTH_RADIUS_M", "LineBuilder", "enu_to_geodetic", "geodetic_to_enu"]
 
 EARTH_RADIUS_M = 6_371_000.0
-KMH = 1.0 / 3.6
 
 
 def enu_to_geodetic(
@@ -103,7 +103,7 @@ class LineBuilder:
     def straight(
         self, length_m: float, *, speed_kmh: float, gradient_permille: float = 0.0
     ) -> Self:
-        self._stretches.append(_Stretch(length_m, None, speed_kmh * KMH, gradient_permille))
+        self._stretches.append(_Stretch(length_m, None, speed_kmh * MPS_PER_KMH, gradient_permille))
         return self
 
     def curve(
@@ -115,7 +115,9 @@ class LineBuilder:
         gradient_permille: float = 0.0,
     ) -> Self:
         """A curve of signed radius: positive turns left."""
-        self._stretches.append(_Stretch(length_m, radius_m, speed_kmh * KMH, gradient_permille))
+        self._stretches.append(
+            _Stretch(length_m, radius_m, speed_kmh * MPS_PER_KMH, gradient_permille)
+        )
         return self
 
     def stopping_point(
@@ -151,7 +153,7 @@ class LineBuilder:
     ) -> Self:
         self._tsrs.append(
             TemporarySpeedRestriction(
-                id=id, start_m=start_m, end_m=end_m, speed_mps=speed_kmh * KMH
+                id=id, start_m=start_m, end_m=end_m, speed_mps=speed_kmh * MPS_PER_KMH
             )
         )
         return self

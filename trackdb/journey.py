@@ -23,8 +23,10 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from protocol import messages as m
+from protocol.units import GRAVITY_MPS2
 from trackdb.schema import Identifier
 from trackdb.track_map import TrackMap
+from trackdb.vehicle import URV_MAX_SPEED_MPS, URV_PARAMETERS, PointMassParameters
 
 __all__ = [
     "URV_LIMITS",
@@ -38,9 +40,10 @@ __all__ = [
     "minimum_running_times",
 ]
 
-GRAVITY_MPS2 = 9.81
 DEFAULT_STEP_M = 5.0
 MAX_SAMPLES = 40_000
+URV_SERVICE_DECELERATION_MPS2 = 0.6
+"""The URV's service braking as planned: within the timetable range of DOMAIN.md §4 [m/s²]."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -54,17 +57,31 @@ class VehicleLimits:
     service_deceleration_mps2: float
     max_speed_mps: float
 
+    @classmethod
+    def of(
+        cls,
+        vehicle: PointMassParameters,
+        *,
+        service_deceleration_mps2: float,
+        max_speed_mps: float,
+    ) -> VehicleLimits:
+        """The limits of ``vehicle``, braking as planned and capped at its maximum speed."""
+        return cls(
+            mass_kg=vehicle.mass_kg,
+            rotating_mass_factor=vehicle.rotating_mass_factor,
+            max_traction_force_n=vehicle.max_traction_force_n,
+            max_traction_power_w=vehicle.max_traction_power_w,
+            service_deceleration_mps2=service_deceleration_mps2,
+            max_speed_mps=max_speed_mps,
+        )
 
-URV_LIMITS = VehicleLimits(
-    # The URV point-mass parameters (onboard/plant/point_mass.py): 15 t, 30 kN, 400 kW; service
-    # braking planned at 0.6 m/s², within the timetable range of DOMAIN.md §4.
-    mass_kg=15_000.0,
-    rotating_mass_factor=0.08,
-    max_traction_force_n=30_000.0,
-    max_traction_power_w=400_000.0,
-    service_deceleration_mps2=0.6,
-    max_speed_mps=200.0 / 3.6,
+
+URV_LIMITS = VehicleLimits.of(
+    URV_PARAMETERS,
+    service_deceleration_mps2=URV_SERVICE_DECELERATION_MPS2,
+    max_speed_mps=URV_MAX_SPEED_MPS,
 )
+"""The URV's (:mod:`trackdb.vehicle`): 15 t, 30 kN, 400 kW, 200 km/h."""
 
 
 class JourneyTimingPoint(BaseModel):

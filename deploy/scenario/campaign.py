@@ -30,6 +30,7 @@ from deploy.scenario.loader import load_scenario
 from deploy.scenario.runner import RunOptions, run_scenario
 from deploy.scenario.schema import ScenarioSpec
 from onboard.etcs import dv_ebi_mps
+from protocol.units import MPS_PER_KMH
 
 __all__ = [
     "FAULT_SCENARIOS",
@@ -41,7 +42,6 @@ __all__ = [
     "summarise",
 ]
 
-KMH_PER_MPS = 3.6
 FAULT_SCENARIOS = ("ma-shortened", "obstacle", "vigilance-absent", "ato-failure",
                    "tsr", "trackside-restart", "zenoh-link-loss", "gps-outage",
                    "odometer-failure", "udp-loss", "wheel-slip")  # fmt: skip
@@ -99,7 +99,7 @@ class CellResult:
             return []
         kpis, found = self.kpis, []
         over = kpis.get("max_overspeed_kmh") or 0.0
-        if over > 0.0 and over / KMH_PER_MPS > _ebi_margin_mps():
+        if over > 0.0 and over * MPS_PER_KMH > _ebi_margin_mps():
             found.append(f"overspeed {over:.2f} km/h beyond the EBI")
         eoa = kpis.get("min_eoa_margin_m")
         if eoa is not None and eoa < 0.0:

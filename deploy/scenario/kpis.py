@@ -17,10 +17,10 @@ from typing import Any
 import numpy as np
 
 from deploy.scenario.schema import Expectation
+from protocol.units import MPS_PER_KMH
 
 __all__ = ["JERK_MIN_SPEED_MPS", "RunCounters", "check_expectations", "compute_kpis", "kpi_value"]
 
-KMH_PER_MPS = 3.6
 J_PER_KWH = 3.6e6
 JERK_MIN_SPEED_MPS = 0.2
 """Jerk is measured while moving (the instant of stopping excluded), as the ADF's tests do."""
@@ -50,7 +50,7 @@ def _speed_rms_kmh(columns: Mapping[str, np.ndarray], state: str) -> float | Non
     mask = (columns["sc_state"] == state) & np.isfinite(columns["reference_speed_mps"])
     error = columns["speed_mps"][mask] - columns["reference_speed_mps"][mask]
     rms = _rms(error)
-    return None if rms is None else rms * KMH_PER_MPS
+    return None if rms is None else rms / MPS_PER_KMH
 
 
 def _max_jerk(columns: Mapping[str, np.ndarray]) -> float:
@@ -99,7 +99,7 @@ def compute_kpis(
     errors = np.abs(position_errors_m[np.isfinite(position_errors_m)])
     return {
         "stops": list(stops),
-        "max_overspeed_kmh": counters.max_overspeed_mps * KMH_PER_MPS,
+        "max_overspeed_kmh": counters.max_overspeed_mps / MPS_PER_KMH,
         "etcs_sb_count": counters.etcs_sb_count,
         "etcs_eb_count": counters.etcs_eb_count,
         "vc_eb_count": counters.vc_eb_count,
@@ -131,7 +131,7 @@ def _finite_max(values: np.ndarray | None) -> float | None:
 
 RANGE_EXTENDER_SETTLE_S = 120.0
 """The range extender's power is averaged from this long after the SOC's minimum [s]."""
-CRUISE_TOLERANCE_MPS = 1.0 / KMH_PER_MPS
+CRUISE_TOLERANCE_MPS = 1.0 * MPS_PER_KMH
 """The cruise starts when the speed first comes this close to the run's highest reference."""
 
 

@@ -23,9 +23,9 @@ import matplotlib.pyplot as plt  # noqa: E402 - the backend is chosen first
 import numpy as np  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
-__all__ = ["render_report"]
+from protocol.units import MPS_PER_KMH
 
-KMH = 3.6
+__all__ = ["render_report"]
 
 
 def _png(figure: Figure) -> str:
@@ -38,14 +38,16 @@ def _png(figure: Figure) -> str:
 def _speed_figure(c: Mapping[str, np.ndarray]) -> Figure:
     figure, (speed, error, force) = plt.subplots(3, 1, figsize=(10, 8), sharex=True)
     t = c["time_s"]
-    speed.plot(t, c["speed_mps"] * KMH, label="speed (truth)")
-    speed.plot(t, c["reference_speed_mps"] * KMH, "--", label="reference (ADF)")
-    speed.plot(t, c["mrsp_mps"] * KMH, ":", label="MRSP")
-    speed.plot(t, c["permitted_speed_mps"] * KMH, "-.", linewidth=0.8, label="ETCS permitted")
+    speed.plot(t, c["speed_mps"] / MPS_PER_KMH, label="speed (truth)")
+    speed.plot(t, c["reference_speed_mps"] / MPS_PER_KMH, "--", label="reference (ADF)")
+    speed.plot(t, c["mrsp_mps"] / MPS_PER_KMH, ":", label="MRSP")
+    speed.plot(
+        t, c["permitted_speed_mps"] / MPS_PER_KMH, "-.", linewidth=0.8, label="ETCS permitted"
+    )
     speed.set_ylabel("km/h")
     speed.legend(loc="upper right", fontsize=8)
     speed.set_title("Speed and reference (seed 000 fig. 9)")
-    error.plot(t, (c["speed_mps"] - c["reference_speed_mps"]) * KMH)
+    error.plot(t, (c["speed_mps"] - c["reference_speed_mps"]) / MPS_PER_KMH)
     error.set_ylabel("v − v_ref [km/h]")
     error.set_title("Speed error (seed 000 fig. 10)")
     force.plot(t, c["force_n"] / 1000.0, label="applied")

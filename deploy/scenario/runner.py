@@ -15,7 +15,7 @@ A telemetry recorder on the node's executive samples the truth; at the end the K
 ``kpis.json``, ``telemetry.npz`` and ``report.html`` are written.
 
 Scenarios with a ``[vc]`` table run one scenario of the Vital Control catalogue instead
-(``onboard.vc.runner``): the VC library with its emulated I/O in lockstep, on a scripted train.
+(``deploy.bench.vc_runner``): the VC library with its emulated I/O in lockstep, on a scripted train.
 """
 
 from __future__ import annotations
@@ -36,6 +36,8 @@ import numpy as np
 import zenoh
 from fastapi.testclient import TestClient
 
+from deploy.bench.vc_runner import ScenarioResult
+from deploy.bench.vc_runner import run_scenario as run_vc_scenario
 from deploy.link_proxy import LinkProxy
 from deploy.ports import loopback_endpoint
 from deploy.scenario.conditions import State
@@ -69,8 +71,6 @@ from onboard.sfa.chain import SensorSettings
 from onboard.sfa.link import LinkFaults
 from onboard.vc import hardware as vc_hardware
 from onboard.vc.installation import VcFaults
-from onboard.vc.runner import ScenarioResult
-from onboard.vc.runner import run_scenario as run_vc_scenario
 from onboard.vcu.vehicle import BogieVehicle
 from protocol import ZenohSettings, open_session
 from protocol import messages as m
@@ -187,7 +187,7 @@ def _ms(value: float | None) -> float | None:
 
 def _run_vc(spec: ScenarioSpec, seed: int) -> RunOutcome:
     assert spec.vc is not None
-    from onboard.vc.catalogue import scenario as catalogue_scenario
+    from deploy.bench.vc_catalogue import scenario as catalogue_scenario
 
     try:
         scenario = catalogue_scenario(spec.vc.catalogue)

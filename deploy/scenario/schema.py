@@ -224,8 +224,8 @@ class Expectation(_Model):
 
 
 class VcCatalogueSpec(_Model):
-    """Run one scenario of the Vital Control catalogue (``onboard.vc.catalogue``) instead of the
-    whole stack: the VC with its emulated I/O on the catalogue's scripted train."""
+    """Run one scenario of the Vital Control catalogue (``deploy.bench.vc_catalogue``) instead of
+    the whole stack: the VC with its emulated I/O on the catalogue's scripted train."""
 
     catalogue: str = Field(min_length=1, max_length=40)
     replicas: Literal[1, 2] = 1

@@ -17,7 +17,8 @@ import numpy as np
 
 from onboard.adf.nmpc import NmpcController, NmpcReference, NmpcResult
 from onboard.adf.odp import OdpPlan
-from onboard.plant.point_mass import CURVE_COEFFICIENT_M, GRAVITY_MPS2, PointMassParameters
+from onboard.plant.point_mass import CURVE_COEFFICIENT_M, PointMassParameters
+from protocol.units import GRAVITY_MPS2
 
 __all__ = ["AutonomousDriving"]
 

@@ -23,7 +23,8 @@ import numpy as np
 import numpy.typing as npt
 
 from onboard.adf.odp import MAX_ACCELERATION_MPS2, OdpPlan
-from onboard.plant.point_mass import CURVE_COEFFICIENT_M, GRAVITY_MPS2, PointMassParameters
+from onboard.plant.point_mass import CURVE_COEFFICIENT_M, PointMassParameters
+from protocol.units import GRAVITY_MPS2
 from trackdb import TrackMap
 
 __all__ = ["OptimalLeg", "optimal_leg", "plan_traction_energy_j", "track_force_n"]

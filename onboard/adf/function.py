@@ -36,8 +36,9 @@ from onboard.adf.odp_energy import (
 )
 from onboard.adf.rd_controller import RemoteDrivingController
 from onboard.adf.supervisor import ModeRequest, SupervisoryController
-from onboard.plant.point_mass import GRAVITY_MPS2, PointMassParameters
+from onboard.plant.point_mass import PointMassParameters
 from protocol.messages import ScState
+from protocol.units import GRAVITY_MPS2
 from trackdb import TrackMap
 
 __all__ = ["DrivingFunction", "NoJourneyError"]

@@ -52,6 +52,7 @@ from onboard.adf.odp import (
     plan_legs,
 )
 from onboard.plant.point_mass import MIN_POWER_SPEED_MPS, PointMassParameters
+from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap
 
 __all__ = [
@@ -90,7 +91,7 @@ TRAIN_LENGTH_M = 10.0
 ODOMETRY_FIXED_M, ODOMETRY_SHARE = 10.0, 0.05
 """ETCS's odometry interval: the max safe front end runs this far [m] plus this share of the
 distance since the last balise group ahead of the estimate; the planner brakes that much earlier."""
-MRSP_MARGIN_MPS = 0.2 / 3.6
+MRSP_MARGIN_MPS = 0.2 * MPS_PER_KMH
 """The plan holds this far under the MRSP (not under the journey's cap), so that tracking
 errors of the controller under a model mismatch stay under the limit."""
 

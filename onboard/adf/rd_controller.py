@@ -17,7 +17,7 @@ import bisect
 import math
 from dataclasses import dataclass
 
-from onboard.plant.point_mass import GRAVITY_MPS2
+from protocol.units import GRAVITY_MPS2
 
 __all__ = ["DEFAULT_GAIN_TABLE", "GainPoint", "RemoteDrivingController", "RemoteDrivingGains"]
 

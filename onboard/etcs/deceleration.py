@@ -25,6 +25,7 @@ from collections.abc import Sequence
 
 from onboard.etcs._exceptions import BrakingCapabilityError, EtcsInputError
 from onboard.etcs.values import BrakeModelType, FixedValues, NationalValues, TrainData
+from protocol.units import GRAVITY_MPS2
 from trackdb import TrackMap
 
 __all__ = [
@@ -36,8 +37,6 @@ __all__ = [
     "gradient_steps",
     "lowest_gradient_under_train",
 ]
-
-GRAVITY_MPS2 = 9.81
 
 GradientStep = tuple[float, float, float]
 """(from [m], to [m], gradient [‰]) over ``[from, to)``, in the track coordinate."""

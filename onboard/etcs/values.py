@@ -19,6 +19,7 @@ from dataclasses import dataclass, fields
 from enum import StrEnum
 
 from onboard.etcs._exceptions import TrainDataError
+from protocol.units import MPS_PER_KMH as KMH
 
 __all__ = [
     "FIXED_VALUES",
@@ -31,9 +32,6 @@ __all__ = [
     "TrainData",
     "conversion_model_build_up_times_s",
 ]
-
-KMH = 1.0 / 3.6
-"""One km/h in m/s."""
 
 
 def _check_finite(instance: object) -> None:

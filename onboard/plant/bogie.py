@@ -40,7 +40,7 @@ from onboard.plant.bogie_parameters import (
 )
 from onboard.plant.contact import creepage, longitudinal_creep_force, saturated_sign
 from onboard.plant.interfaces import ActuatorCommands, BogieTruth
-from onboard.plant.point_mass import GRAVITY_MPS2
+from protocol.units import GRAVITY_MPS2
 
 __all__ = ["DEFAULT_SUBSTEP_S", "BogieEnergy", "BogieModel", "Integrator"]
 

@@ -31,7 +31,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from onboard.plant.contact import PolachParameters
-from onboard.plant.point_mass import GRAVITY_MPS2, URV_PARAMETERS
+from protocol.units import GRAVITY_MPS2
+from trackdb.vehicle import URV_PARAMETERS
 
 __all__ = [
     "DOF",

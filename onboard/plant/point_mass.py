@@ -7,13 +7,18 @@ and the curve resistance F_curve = M g (800 / R) / 1000 (the Italian k/R with k 
 applied force u follows the demand through a first-order lag and is limited by the traction
 envelope (max force, max power) and the brake's max force. The model runs forwards only: a
 vehicle that stops is held (as by its parking brake) rather than rolling back.
+
+The parameters and the URV's values are the vehicle's data, shared with the trackside's
+planner: they live in :mod:`trackdb.vehicle` and are re-exported here.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
+
+from protocol.units import GRAVITY_MPS2
+from trackdb.vehicle import URV_PARAMETERS, PointMassParameters
 
 __all__ = [
     "GRAVITY_MPS2",
@@ -23,44 +28,9 @@ __all__ = [
     "with_model_mismatch",
 ]
 
-GRAVITY_MPS2 = 9.81
 CURVE_COEFFICIENT_M = 800.0
 MIN_POWER_SPEED_MPS = 1.0
 """Below this speed the power limit is not applied (the force limit governs)."""
-
-
-@dataclass(frozen=True, kw_only=True)
-class PointMassParameters:
-    mass_kg: float
-    rotating_mass_factor: float
-    davis_a_n: float
-    davis_b_n_per_mps: float
-    davis_c_n_per_mps2: float
-    max_traction_force_n: float
-    max_traction_power_w: float
-    max_brake_force_n: float
-    actuator_time_constant_s: float
-
-
-URV_PARAMETERS = PointMassParameters(
-    # Assumed values: the seeds give no numbers for the vehicle. Seed 003 describes a single
-    # high-speed bogie under a small carbody, "closer to an SUV than a train": we take 15 t.
-    mass_kg=15_000.0,
-    rotating_mass_factor=0.08,
-    # Davis: 1 daN/t for steel wheels on rail, a little mechanical friction, and ½ρ C_d S with
-    # ρ = 1.2 kg/m³ and C_d S ≈ 0.67 m² for the SUV-sized body. That is 1.55 kN and 86 kW at
-    # 200 km/h: seed 003 §7.2 ends with the 100 kW range extender alone holding 200 km/h, so
-    # the cruise load must stay under it (with drive losses and auxiliaries, 99 kW on the bus).
-    davis_a_n=150.0,
-    davis_b_n_per_mps=3.0,
-    davis_c_n_per_mps2=0.40,
-    # Two traction motors; power from two 742 V × 200 A packs plus the 100 kW range extender.
-    max_traction_force_n=30_000.0,
-    max_traction_power_w=400_000.0,
-    # Service braking of about 1 m/s².
-    max_brake_force_n=15_000.0,
-    actuator_time_constant_s=0.3,
-)
 
 
 def with_model_mismatch(

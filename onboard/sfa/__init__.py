@@ -6,15 +6,19 @@ and the OBCU's localisation input.
 - :mod:`~onboard.sfa.reorder` and :mod:`~onboard.sfa.listener`: INPUT_PROTOCOL validated,
   reordered and fused; OUTPUT_PROTOCOL out; ACKs tracked.
 - :mod:`~onboard.sfa.localisation`: the OBCU (on-board control unit) side.
-- :mod:`~onboard.sfa.runner`: the same over real UDP sockets (``ato sfa listen``).
-- :mod:`~onboard.sfa.link`, :mod:`~onboard.sfa.drive`, :mod:`~onboard.sfa.lockstep`: fault
-  injection, a driven plant and the whole chain in lockstep.
-- :mod:`~onboard.sfa.recording`: the offline configuration (record, replay).
+- :mod:`~onboard.sfa.sockets`: the listener and the OBCU over real UDP sockets
+  (``ato sfa listen``).
+- :mod:`~onboard.sfa.link`: fault injection on the sensors' link;
+  :mod:`~onboard.sfa.chain`: the whole chain as the onboard node steps it.
+
+The emulated drive, the chain in lockstep against the truth and the offline configuration
+(record, replay) drive and score the chain from outside: ``deploy.bench.sfa_drive``,
+``deploy.bench.sfa_lockstep``, ``deploy.bench.sfa_recording``.
 
 Wire formats: CONTRACT.md §3, codecs in :mod:`protocol.udp`. Design notes: docs/sfa.md.
 """
 
-from onboard.sfa._exceptions import AddressError, NotInitialisedError, RecordingError, SfaError
+from onboard.sfa._exceptions import AddressError, NotInitialisedError, SfaError
 from onboard.sfa.filter import FilterConfig, TrackKalmanFilter
 from onboard.sfa.link import FaultyLink, LinkFaults
 from onboard.sfa.listener import (
@@ -26,16 +30,11 @@ from onboard.sfa.listener import (
     SfaStatus,
 )
 from onboard.sfa.localisation import Localisation, LocalisationEstimate
-from onboard.sfa.lockstep import DriveResult, DriveSettings, ErrorStats, run_lockstep
-from onboard.sfa.recording import Recording, ReplayResult, replay
 from onboard.sfa.reorder import ReorderBuffer
 
 __all__ = [
     "ALL_SENSORS",
     "AddressError",
-    "DriveResult",
-    "DriveSettings",
-    "ErrorStats",
     "FaultyLink",
     "FilterConfig",
     "Health",
@@ -46,13 +45,8 @@ __all__ = [
     "Localisation",
     "LocalisationEstimate",
     "NotInitialisedError",
-    "Recording",
-    "RecordingError",
     "ReorderBuffer",
-    "ReplayResult",
     "SfaError",
     "SfaStatus",
     "TrackKalmanFilter",
-    "replay",
-    "run_lockstep",
 ]

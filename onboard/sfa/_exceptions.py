@@ -2,7 +2,6 @@
 
 - :class:`SfaError` — base of everything this package raises on purpose.
   - :class:`NotInitialisedError` — the filter was asked for an estimate before a GROUND_TRUTH.
-  - :class:`RecordingError` — an offline recording cannot be read or written.
   - :class:`AddressError` — a ``HOST:PORT`` option that does not parse.
 
 Malformed datagrams never raise out of the listener: they are dropped and counted by reason.
@@ -10,7 +9,7 @@ Malformed datagrams never raise out of the listener: they are dropped and counte
 
 from __future__ import annotations
 
-__all__ = ["AddressError", "NotInitialisedError", "RecordingError", "SfaError"]
+__all__ = ["AddressError", "NotInitialisedError", "SfaError"]
 
 
 class SfaError(Exception):
@@ -19,10 +18,6 @@ class SfaError(Exception):
 
 class NotInitialisedError(SfaError, RuntimeError):
     """The filter has not been initialised by a GROUND_TRUTH packet."""
-
-
-class RecordingError(SfaError, ValueError):
-    """An offline recording is unreadable or inconsistent."""
 
 
 class AddressError(SfaError, ValueError):

@@ -27,8 +27,8 @@ import numpy as np
 import numpy.typing as npt
 from filterpy.kalman import KalmanFilter
 
-from onboard.plant.point_mass import GRAVITY_MPS2
 from onboard.sfa._exceptions import NotInitialisedError
+from protocol.units import GRAVITY_MPS2
 from trackdb import TrackMap
 
 __all__ = [

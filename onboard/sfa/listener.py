@@ -3,7 +3,7 @@
 :class:`ListenerCore` is the pure part: ``feed(datagram, arrival_s)`` takes one INPUT datagram
 and returns the OUTPUT datagrams it produced; ``on_ack`` and ``poll`` do the rest. It opens no
 socket and reads no clock, so it runs in lockstep and is replayed from recordings.
-:mod:`onboard.sfa.runner` drives it from real sockets.
+:mod:`onboard.sfa.sockets` drives it from real sockets.
 
 Every datagram received is counted exactly once: processed (by sensor type), ignored before the
 first GROUND_TRUTH, ignored because its sensor is disabled, dropped by reason, or still waiting

@@ -13,19 +13,17 @@ be safe. Three tasks on the executive, sharing no mutable state:
 - :mod:`~onboard.vc.task_c`: Task C (2 ms, after B), drives the valves and the relay;
 - :mod:`~onboard.vc.redundancy`: two replicas in 2-out-of-2 and their watchdogs;
   :mod:`~onboard.vc.datalog`: the black box (JSON Lines) and its reader;
-- :mod:`~onboard.vc.fused_speed`: what supervising the speed on the sensor-fusion estimate
-  gains, measured on the catalogue;
 - :mod:`~onboard.vc.installation`: the VC as fitted to a vehicle, its I/O wired to the plant,
   the ETCS onboard and the BTM;
 - :mod:`~onboard.vc.fsm`: their transition tables; :mod:`~onboard.vc.ipc`: their mailboxes and
   messages; :mod:`~onboard.vc.module`: :class:`VitalControl`, which wires and registers them.
 
 Around them: the request/response messages (:mod:`~onboard.vc.messages`), the fault-injectable
-link (:mod:`~onboard.vc.link`), the emulated I/O (:mod:`~onboard.vc.hardware`), a test double of
-the ATO-OB (:mod:`~onboard.vc.responder`), and the scenario catalogue with its lockstep runner
-(:mod:`~onboard.vc.scenarios`, :mod:`~onboard.vc.catalogue`, :mod:`~onboard.vc.runner`).
-Parameters are in :class:`VcConfig` (:mod:`~onboard.vc.config`); errors in
-:mod:`onboard.vc._exceptions`.
+link (:mod:`~onboard.vc.link`) and the emulated I/O (:mod:`~onboard.vc.hardware`). The test
+double of the ATO-OB, the scenario catalogue, its lockstep runner and the fused-speed comparison
+drive and score the VC from outside; they are in ``deploy.bench`` (``vc_responder``,
+``vc_scenarios``, ``vc_catalogue``, ``vc_runner``, ``vc_fused_speed``). Parameters are in
+:class:`VcConfig` (:mod:`~onboard.vc.config`); errors in :mod:`onboard.vc._exceptions`.
 
 No Zenoh, no threads, no wall clock: every call takes ``now_s``. docs/vc.md describes the
 model and the choices.
@@ -36,16 +34,10 @@ board), FSM (finite state machine), IPC (inter-process communication).
 """
 
 from onboard.vc._exceptions import (
-    ScenarioError,
     VcError,
     VcInputError,
 )
-from onboard.vc.catalogue import (
-    CATALOGUE,
-    scenario,
-)
 from onboard.vc.config import (
-    KMH,
     TIME_TOLERANCE_S,
     VcConfig,
 )
@@ -76,13 +68,6 @@ from onboard.vc.fsm import (
     Trigger,
     select_rule,
     transition_coverage,
-)
-from onboard.vc.fused_speed import (
-    FUSED_COMPARISON_KEYS,
-    FusedComparison,
-    compare_fused_speed,
-    format_fused_comparison,
-    with_fused_speed,
 )
 from onboard.vc.hardware import (
     FRAME_NUMBER_MODULO,
@@ -160,36 +145,6 @@ from onboard.vc.redundancy import (
     TwoOutOfTwo,
     Watchdog,
 )
-from onboard.vc.responder import (
-    OPERATOR_REACTION_S,
-    AtoObResponder,
-    OperatorAction,
-    OperatorActionKind,
-    ResponderFault,
-    ResponderFaultKind,
-)
-from onboard.vc.runner import (
-    ATO_OB_PRIORITY,
-    SEED_TIMINGS_MS,
-    STEP_S,
-    SURROUNDINGS_PRIORITY,
-    ScenarioResult,
-    TrainMotion,
-    count_by_class,
-    format_report,
-    run_catalogue,
-    run_scenario,
-)
-from onboard.vc.scenarios import (
-    SEED_HAZARDOUS_COUNTS,
-    SEED_SCENARIO_COUNT,
-    Fault,
-    Hazard,
-    HazardKind,
-    OutcomeClass,
-    Scenario,
-    SpeedTarget,
-)
 from onboard.vc.task_a import (
     TaskA,
 )
@@ -204,33 +159,19 @@ from onboard.vc.task_c import (
 __all__ = [
     "ALL_TABLES",
     "IO_PRIORITY",
-    "FUSED_COMPARISON_KEYS",
-    "FusedComparison",
-    "compare_fused_speed",
-    "format_fused_comparison",
-    "with_fused_speed",
     "VcFaults",
     "VcInstallation",
-    "ATO_OB_PRIORITY",
-    "CATALOGUE",
     "CONFIRMED_SECTIONS",
     "DATALOG_PRIORITY",
     "DECAY_CONDITIONS",
     "FRAME_NUMBER_MODULO",
     "FULL_EB_DELAY_S",
-    "KMH",
     "MAX_FRAME_GAP",
-    "OPERATOR_REACTION_S",
     "PULSED_SECTIONS",
     "RECHARGE_S",
     "RELAY_SWITCHING_DELAY_S",
     "RELEASE_FRACTION",
     "SECTIONS",
-    "SEED_HAZARDOUS_COUNTS",
-    "SEED_SCENARIO_COUNT",
-    "SEED_TIMINGS_MS",
-    "STEP_S",
-    "SURROUNDINGS_PRIORITY",
     "TASK_A_PRIORITY",
     "TASK_A_TRANSITIONS",
     "TASK_B_PRIORITY",
@@ -241,7 +182,6 @@ __all__ = [
     "TIME_TOLERANCE_S",
     "VOTER_PRIORITY",
     "ActuationStatus",
-    "AtoObResponder",
     "AtoObResponse",
     "AtoObStatus",
     "BrakeState",
@@ -255,13 +195,10 @@ __all__ = [
     "EbCondition",
     "EmergencyBrakeValves",
     "EtcsState",
-    "Fault",
     "FaultyLink",
     "Fsm",
     "FsmCoverage",
     "FsmTransition",
-    "Hazard",
-    "HazardKind",
     "LinkDirection",
     "LinkFault",
     "LinkFaultKind",
@@ -269,9 +206,6 @@ __all__ = [
     "MessageQueue",
     "Notification",
     "OdometryEstimate",
-    "OperatorAction",
-    "OperatorActionKind",
-    "OutcomeClass",
     "PairEvent",
     "PairEventKind",
     "PipeFault",
@@ -281,15 +215,9 @@ __all__ = [
     "ReplicaFault",
     "ReplicaFaultKind",
     "ReplicaView",
-    "ResponderFault",
-    "ResponderFaultKind",
-    "Scenario",
-    "ScenarioError",
-    "ScenarioResult",
     "Section",
     "SectionRequest",
     "SectionResponse",
-    "SpeedTarget",
     "StateMachine",
     "SupervisionStatus",
     "TachometerBoard",
@@ -302,7 +230,6 @@ __all__ = [
     "TaskB",
     "TaskBState",
     "TaskC",
-    "TrainMotion",
     "TransitionRule",
     "Trigger",
     "TwoOutOfTwo",
@@ -318,13 +245,8 @@ __all__ = [
     "VitalControl",
     "Watchdog",
     "corrupt_response",
-    "count_by_class",
     "expected_response_number",
-    "format_report",
     "read_datalog",
-    "run_catalogue",
-    "run_scenario",
-    "scenario",
     "select_rule",
     "transition_coverage",
 ]

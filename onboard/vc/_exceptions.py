@@ -6,8 +6,6 @@
     ├── VcInputError (ValueError)        a bad call: a non-finite or negative duration, time
     │                                    going back, a message with the wrong number of
     │                                    sections or a sequence number out of range
-    ├── ScenarioError (ValueError)       a scenario that cannot be run: a fault window that
-    │                                    ends before it starts, an action after the run
     └── DatalogCorruptError (ValueError) a datalog line other than the last is not a record
                                          (defined in :mod:`onboard.vc.datalog`)
 
@@ -17,7 +15,7 @@ Decay), not an exception, so each cycle of Task A, B and C always yields its out
 
 from __future__ import annotations
 
-__all__ = ["ScenarioError", "VcError", "VcInputError"]
+__all__ = ["VcError", "VcInputError"]
 
 
 class VcError(Exception):
@@ -26,7 +24,3 @@ class VcError(Exception):
 
 class VcInputError(VcError, ValueError):
     """A bad argument: non-finite, out of range, time going back."""
-
-
-class ScenarioError(VcError, ValueError):
-    """A scenario of the catalogue that does not make sense."""

@@ -10,11 +10,10 @@ import math
 from dataclasses import dataclass, fields
 
 from onboard.vc._exceptions import VcInputError
+from protocol.units import MPS_PER_KMH
 
-__all__ = ["KMH", "TIME_TOLERANCE_S", "VcConfig"]
+__all__ = ["TIME_TOLERANCE_S", "VcConfig"]
 
-KMH = 1.0 / 3.6
-"""One km/h in m/s."""
 TIME_TOLERANCE_S = 1e-6
 """Two simulated instants closer than this are the same instant (float sums of periods)."""
 
@@ -38,7 +37,7 @@ class VcConfig:
     """⚠ How often the operator's vigilance is asked for (measured from the previous request)."""
     vigilance_timeout_s: float = 2.0
     """⚠ How long the operator has to confirm vigilance before EB and System Decay."""
-    speed_limit_etcs_isolated_mps: float = 30.0 * KMH
+    speed_limit_etcs_isolated_mps: float = 30.0 * MPS_PER_KMH
     """With ETCS isolated the VC brakes above 30 km/h (seed 004, S6.1)."""
     tachometer_period_s: float = 0.080
     """The odometry board sends a frame every 80 ms (seed 004)."""

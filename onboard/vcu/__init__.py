@@ -4,20 +4,19 @@ braking, failure/limitation management and the range extender's energy managemen
 The VCU reaches the plant only through :class:`onboard.plant.interfaces.ActuatorCommands`.
 Abbreviations: SOC state of charge, BMS battery management system, RE range extender,
 I²T the battery's thermal overload integral.
+
+The seed 003 missions and manoeuvres that drive the VCU in closed loop for tests and benches are
+in :mod:`deploy.bench.vcu_mission` and :mod:`deploy.bench.vcu_manoeuvres`.
 """
 
 from onboard.vcu.braking import BlendedBraking, BrakingSplit, electric_share
-from onboard.vcu.limits import BatteryOverload, EnergyManager, SlipperyRail, temperature_factor
-from onboard.vcu.manoeuvres import (
-    Manoeuvre,
-    ManoeuvreRecord,
-    acceleration_manoeuvre,
-    braking_manoeuvre,
-    friction_drop_manoeuvre,
-    run_manoeuvre,
+from onboard.vcu.feedback import (
+    powertrain_feedback,
+    step_powertrain,
+    vcu_inputs,
     vcu_parameters_for,
 )
-from onboard.vcu.mission import SEED003_MISSION_VEHICLE, MissionRecord, run_energy_mission
+from onboard.vcu.limits import BatteryOverload, EnergyManager, SlipperyRail, temperature_factor
 from onboard.vcu.parameters import BrakingPhase, Limitation, VcuInputs, VcuParameters, VcuStatus
 from onboard.vcu.traction import (
     AxleSlipProtection,
@@ -28,16 +27,6 @@ from onboard.vcu.traction import (
 from onboard.vcu.unit import SpeedLoop, VehicleControlUnit
 
 __all__ = [
-    "SEED003_MISSION_VEHICLE",
-    "MissionRecord",
-    "run_energy_mission",
-    "Manoeuvre",
-    "ManoeuvreRecord",
-    "acceleration_manoeuvre",
-    "braking_manoeuvre",
-    "friction_drop_manoeuvre",
-    "run_manoeuvre",
-    "vcu_parameters_for",
     "AxleSlipProtection",
     "BatteryOverload",
     "BlendedBraking",
@@ -55,5 +44,9 @@ __all__ = [
     "electric_share",
     "leading_share",
     "motor_torque_limit_nm",
+    "powertrain_feedback",
+    "step_powertrain",
     "temperature_factor",
+    "vcu_inputs",
+    "vcu_parameters_for",
 ]

@@ -6,16 +6,12 @@ seed (marked so) or an assumption written next to it. ``docs/vcu.md`` lists them
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from onboard.plant.powertrain import Powertrain
+from protocol.units import MPS_PER_KMH
 
 __all__ = [
-    "powertrain_feedback",
     "BrakingPhase",
     "Limitation",
     "VcuInputs",
@@ -53,9 +49,9 @@ class VcuParameters:
     slippery_rail_torque_fraction: float = 0.6
     slippery_rail_hold_s: float = 60.0
     # Blended braking (seed 003 §3.2, fig. 4).
-    blending_speed_mps: float = 30.0 / 3.6
+    blending_speed_mps: float = 30.0 * MPS_PER_KMH
     """Below it the pneumatic brake joins (phase 2)."""
-    min_electric_braking_speed_mps: float = 10.0 / 3.6
+    min_electric_braking_speed_mps: float = 10.0 * MPS_PER_KMH
     """Below it the pneumatic brake alone acts (phase 3)."""
     brake_gain_nm_per_pa: float = 6.9e-3
     """Per wheelset: 15 kN at the rail for the vehicle = 6900 N·m per axle at 5 bar."""
@@ -156,21 +152,3 @@ class VcuStatus:
     @property
     def slip_detected(self) -> bool:
         return self.slip_front or self.slip_rear
-
-
-def powertrain_feedback(powertrain: Powertrain, demand: VcuInputs) -> VcuInputs:
-    """``demand`` (the ADF's demand and the speeds) completed with what the VCU reads from the
-    BMS, the range extender and the drives' temperatures."""
-    bms = powertrain.bms_status()
-    return dataclasses.replace(
-        demand,
-        soc=bms.soc,
-        battery_current_a=bms.current_a,
-        battery_voltage_v=bms.voltage_v,
-        max_discharge_power_w=bms.max_discharge_power_w,
-        max_charge_power_w=bms.max_charge_power_w,
-        continuous_current_a=bms.continuous_current_a,
-        range_extender_power_w=powertrain.range_extender.power_w,
-        motor_temperature_front_c=powertrain.thermal_front.temperature_c,
-        motor_temperature_rear_c=powertrain.thermal_rear.temperature_c,
-    )

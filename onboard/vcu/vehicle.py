@@ -17,7 +17,7 @@ from onboard.plant.bogie import BogieModel
 from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS, BogieParameters
 from onboard.plant.interfaces import BogieTruth
 from onboard.plant.powertrain import Powertrain, PowertrainParameters
-from onboard.vcu.manoeuvres import step_powertrain, vcu_inputs, vcu_parameters_for
+from onboard.vcu.feedback import step_powertrain, vcu_inputs, vcu_parameters_for
 from onboard.vcu.unit import VehicleControlUnit
 
 __all__ = ["BogieVehicle"]

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from deploy.bench_plant import bench_plant, stand_in_driver
-from deploy.plant_plots import PLOT_FILES
+from deploy.bench.plant_bench import bench_plant, stand_in_driver
+from deploy.bench.plant_plots import PLOT_FILES
 
 
 def test_stand_in_driver_drives_then_brakes() -> None:

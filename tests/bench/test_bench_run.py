@@ -10,7 +10,7 @@ from typing import Any
 import pytest
 from rich.console import Console
 
-from deploy.bench_run import RunSample, bench_run, run_once, summarise
+from deploy.bench.run_bench import RunSample, bench_run, run_once, summarise
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "deploy" / "scenarios"
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from deploy.bench_sfa import bench_sfa, imu_cost_us
+from deploy.bench.sfa_bench import bench_sfa, imu_cost_us
 from deploy.cli import app
 
 runner = CliRunner()

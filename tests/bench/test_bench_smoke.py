@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import zenoh
 
-from deploy.bench import VEHICLE, measure_round_trips
+from deploy.bench.zenoh_bench import VEHICLE, measure_round_trips
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import SimClock
 from tests.conftest import wait_for

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from deploy.bench_trackdb import BENCH_LINES, TARGETS_MEDIAN_US, bench_trackdb, time_calls
+from deploy.bench.trackdb_bench import BENCH_LINES, TARGETS_MEDIAN_US, bench_trackdb, time_calls
 
 
 def test_time_calls_times_each_call() -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from deploy.bench_trackside import run_bench
+from deploy.bench.trackside_bench import run_bench
 
 
 def test_a_small_bench_measures_rest_and_live_latency() -> None:

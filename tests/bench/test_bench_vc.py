@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from deploy.bench_vc import bench_vc
+from deploy.bench.vc_bench import bench_vc
 
 
 def test_bench_vc_times_lockstep_runs_and_both_real_time_waits(

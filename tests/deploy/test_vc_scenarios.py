@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pytest
 
+from deploy.bench.vc_catalogue import CATALOGUE
 from deploy.scenario import load_scenario, scenario_names
 from deploy.scenario.runner import RunOptions, run_scenario
-from onboard.vc.catalogue import CATALOGUE
 
 BRAKING = {"eb_safe_recovery", "eb_then_decay"}
 

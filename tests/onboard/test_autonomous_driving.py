@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from onboard.adf.closed_loop import ClosedLoopRecord, Stop, run_autonomous_journey
+from deploy.bench.adf_closed_loop import ClosedLoopRecord, Stop, run_autonomous_journey
 from onboard.adf.nmpc import NmpcController
 from onboard.adf.odp import plan_legs
 from onboard.adf.odp_energy import plan_energy_legs

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from onboard.adf.closed_loop import HandoverRecord, run_handover_sequence
+from deploy.bench.adf_closed_loop import HandoverRecord, run_handover_sequence
 from onboard.plant import URV_PARAMETERS
 from onboard.plant.point_mass import with_model_mismatch
 from trackdb import TrackMap, load_seed_line

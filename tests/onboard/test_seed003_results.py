@@ -12,19 +12,16 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS as BOGIE
-from onboard.vcu import (
+from deploy.bench.vcu_manoeuvres import (
+    FRICTION_DROP_FORCE_N,
     ManoeuvreRecord,
-    VcuParameters,
     acceleration_manoeuvre,
     braking_manoeuvre,
-    electric_share,
     friction_drop_manoeuvre,
-    leading_share,
     run_manoeuvre,
-    vcu_parameters_for,
 )
-from onboard.vcu.manoeuvres import FRICTION_DROP_FORCE_N
+from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS as BOGIE
+from onboard.vcu import VcuParameters, electric_share, leading_share, vcu_parameters_for
 
 VCU = vcu_parameters_for(BOGIE)
 MAX_TORQUE_NM = BOGIE.motor_max_torque_nm

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from onboard.vcu.mission import MissionRecord, run_energy_mission
+from deploy.bench.vcu_mission import MissionRecord, run_energy_mission
 
 REFERENCE_MPS = 200.0 / 3.6
 

@@ -6,8 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from deploy.bench.sfa_drive import DriveSettings
+from deploy.bench.sfa_lockstep import run_lockstep
 from onboard.plant.sensors import SensorFaults, TimeWindow
-from onboard.sfa import DriveSettings, Health, LinkFaults, ListenerConfig, run_lockstep
+from onboard.sfa import Health, LinkFaults, ListenerConfig
 from trackdb import TrackMap, load_seed_line
 
 RING_S = 200.0

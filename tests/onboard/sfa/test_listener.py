@@ -10,9 +10,9 @@ import threading
 import numpy as np
 import pytest
 
-from deploy.bench_sfa import fuzz_datagrams, fuzz_listener
+from deploy.bench.sfa_bench import fuzz_datagrams, fuzz_listener
 from onboard.sfa import Health, ListenerConfig, ListenerCore
-from onboard.sfa.runner import ListenerRunner
+from onboard.sfa.sockets import ListenerRunner
 from protocol.udp import InputPacket, SensorType, decode_output, encode_ack, encode_input
 from tests.conftest import wait_for
 from trackdb import TrackMap, load_seed_line

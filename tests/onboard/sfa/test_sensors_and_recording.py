@@ -7,21 +7,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from deploy.bench.sfa_drive import DriveSettings
+from deploy.bench.sfa_lockstep import run_lockstep
+from deploy.bench.sfa_recording import Recording, RecordingError, replay
 from onboard.plant.sensors import (
     InterfaceModules,
     SensorFaults,
     TimeWindow,
     TruthSample,
 )
-from onboard.sfa import (
-    DriveSettings,
-    FilterConfig,
-    ListenerConfig,
-    Recording,
-    RecordingError,
-    replay,
-    run_lockstep,
-)
+from onboard.sfa import FilterConfig, ListenerConfig
 from protocol.udp import SensorType, decode_input
 from trackdb import TrackMap, load_seed_line
 

@@ -14,7 +14,7 @@ import threading
 import pytest
 
 from onboard.sfa import Health, ListenerCore, Localisation
-from onboard.sfa.runner import ListenerRunner, ObcuEndpoint
+from onboard.sfa.sockets import ListenerRunner, ObcuEndpoint
 from protocol.udp import InputPacket, SensorType, decode_output, encode_input
 from tests.conftest import wait_for
 from trackdb import TrackMap, load_seed_line

@@ -5,16 +5,13 @@ from __future__ import annotations
 
 import pytest
 
-from onboard.vc import (
-    CATALOGUE,
+from deploy.bench.vc_catalogue import CATALOGUE
+from deploy.bench.vc_fused_speed import (
     FusedComparison,
-    ScenarioResult,
     compare_fused_speed,
     format_fused_comparison,
-    format_report,
-    run_catalogue,
-    run_scenario,
 )
+from deploy.bench.vc_runner import ScenarioResult, format_report, run_catalogue, run_scenario
 
 _RESULTS: list[ScenarioResult] = []
 _PAIR_RESULTS: list[ScenarioResult] = []

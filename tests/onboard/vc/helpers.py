@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
+from deploy.bench.vc_runner import ScenarioResult, run_scenario
+from deploy.bench.vc_scenarios import Hazard, HazardKind, OutcomeClass, Scenario
 from onboard.vc import (
     SECTIONS,
     AtoObResponse,
     AtoObStatus,
-    Hazard,
-    HazardKind,
-    OutcomeClass,
-    Scenario,
-    ScenarioResult,
     Section,
     SectionRequest,
     SectionResponse,
@@ -18,7 +15,6 @@ from onboard.vc import (
     TaskBState,
     VcRequest,
     expected_response_number,
-    run_scenario,
 )
 
 __all__ = ["quick", "request", "response_to", "supervision"]

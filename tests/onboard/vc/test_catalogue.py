@@ -6,21 +6,11 @@ from dataclasses import replace
 
 import pytest
 
-from onboard.vc import (
-    CATALOGUE,
-    SEED_HAZARDOUS_COUNTS,
-    SEED_SCENARIO_COUNT,
-    Fsm,
-    FusedComparison,
-    OutcomeClass,
-    PairEventKind,
-    ScenarioResult,
-    count_by_class,
-    format_report,
-    run_scenario,
-    scenario,
-    transition_coverage,
-)
+from deploy.bench.vc_catalogue import CATALOGUE, scenario
+from deploy.bench.vc_fused_speed import FusedComparison
+from deploy.bench.vc_runner import ScenarioResult, count_by_class, format_report, run_scenario
+from deploy.bench.vc_scenarios import SEED_HAZARDOUS_COUNTS, SEED_SCENARIO_COUNT, OutcomeClass
+from onboard.vc import Fsm, PairEventKind, transition_coverage
 
 SEED_LETTERS = {"A", "B", "C", "D", "E", "F", "G", "L", "M", "N"}
 

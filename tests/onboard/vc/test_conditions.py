@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import pytest
 
+from deploy.bench.vc_responder import OperatorAction, OperatorActionKind
+from deploy.bench.vc_runner import ScenarioResult
+from deploy.bench.vc_scenarios import OutcomeClass, SpeedTarget
 from onboard.vc import (
     DecayReason,
     EbCondition,
@@ -11,11 +14,6 @@ from onboard.vc import (
     LinkDirection,
     LinkFault,
     LinkFaultKind,
-    OperatorAction,
-    OperatorActionKind,
-    OutcomeClass,
-    ScenarioResult,
-    SpeedTarget,
     VcEventKind,
 )
 from tests.onboard.vc.helpers import quick

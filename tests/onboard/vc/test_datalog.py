@@ -6,8 +6,9 @@ from pathlib import Path
 
 import pytest
 
+from deploy.bench.vc_responder import AtoObResponder, ResponderFault, ResponderFaultKind
 from onboard.runtime import Executive, SimClock
-from onboard.vc import AtoObResponder, ResponderFault, ResponderFaultKind, VcHardware, VitalControl
+from onboard.vc import VcHardware, VitalControl
 from onboard.vc.datalog import (
     Datalog,
     DatalogCorruptError,

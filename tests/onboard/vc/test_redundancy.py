@@ -6,14 +6,12 @@ from collections.abc import Sequence
 
 import pytest
 
+from deploy.bench.vc_responder import AtoObResponder, ResponderFault, ResponderFaultKind
 from onboard.runtime import Executive, SimClock
 from onboard.runtime.clock import NS_PER_S
 from onboard.vc import (
-    AtoObResponder,
     Delivery,
     EmergencyBrakeValves,
-    ResponderFault,
-    ResponderFaultKind,
     TachometerBoard,
     TachometerFault,
     TachometerFaultMode,

@@ -8,11 +8,11 @@ import pkgutil
 import pytest
 
 import onboard.vc
+from deploy.bench.vc_responder import AtoObResponder
 from onboard.etcs.balises import TelegramHeader
 from onboard.runtime import Executive, SimClock
 from onboard.runtime.clock import NS_PER_S
 from onboard.vc import (
-    AtoObResponder,
     BrakeState,
     Delivery,
     Notification,

@@ -24,14 +24,17 @@ import numpy as np
 import numpy.typing as npt
 
 from onboard.plant.sensors import TruthSample
-from onboard.sfa._exceptions import RecordingError
 from onboard.sfa.listener import ListenerConfig, ListenerCore, SfaStatus
+from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap, load_seed_line
 
-__all__ = ["Recording", "ReplayResult", "replay"]
+__all__ = ["Recording", "RecordingError", "ReplayResult", "replay"]
 
 FloatArray = npt.NDArray[np.float64]
-MPS_TO_KMH = 3.6
+
+
+class RecordingError(ValueError):
+    """An offline recording is unreadable or inconsistent."""
 
 
 @dataclass
@@ -132,7 +135,7 @@ class ReplayResult:
 
     @property
     def speed_rms_kmh(self) -> float:
-        return float(np.sqrt(np.mean(self.speed_errors_mps**2)) * MPS_TO_KMH)
+        return float(np.sqrt(np.mean(self.speed_errors_mps**2)) / MPS_PER_KMH)
 
 
 def replay(

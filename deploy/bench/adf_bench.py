@@ -16,29 +16,30 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from deploy.adf_plots import write_handover_plot
-from onboard.adf.closed_loop import (
+from deploy.bench.adf_closed_loop import (
     ClosedLoopRecord,
     HandoverRecord,
     Stop,
     run_autonomous_journey,
     run_handover_sequence,
 )
+from deploy.bench.adf_plots import write_handover_plot
 from onboard.adf.energy import optimal_leg, plan_traction_energy_j
 from onboard.adf.nmpc import NmpcConfig, NmpcController
 from onboard.adf.odp import plan_legs
 from onboard.adf.odp_energy import plan_energy_legs
 from onboard.plant import URV_PARAMETERS
 from onboard.plant.point_mass import with_model_mismatch
+from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap, load_seed_line
 
 __all__ = ["bench_adf", "energy_comparison", "field_test_lap", "handover"]
 
-MILANO_BOLOGNA_LEG = (128_000.0, 30_000.0, 700.0, 200 / 3.6)
+MILANO_BOLOGNA_LEG = (128_000.0, 30_000.0, 700.0, 200 * MPS_PER_KMH)
 """Reggio Emilia towards Bologna: start [m], length [m], scheduled time [s], cap [m/s]."""
 
 START_M = 200.0
-CAP_MPS = 40 / 3.6
+CAP_MPS = 40 * MPS_PER_KMH
 FIELD_TEST_STOPS = [(1775.0, 300.0, 320.0), (3200.0, 550.0, 570.0), (6050.0, 1000.0, 1000.0)]
 TARGET_P99_MS = 3.0
 
@@ -160,7 +161,7 @@ def bench_adf(*, plots_dir: Path | None = None) -> dict[str, dict[str, float]]:
             "median_ms": float(np.median(times_ms)),
             "p99_ms": float(np.percentile(times_ms, 99)),
             "max_ms": float(times_ms.max()),
-            "speed_rms_kmh": float(np.sqrt(np.mean(error**2))) * 3.6,
+            "speed_rms_kmh": float(np.sqrt(np.mean(error**2))) / MPS_PER_KMH,
             "max_stop_error_m": max(stop_errors) if stop_errors else float("nan"),
             "stops": float(len(record.arrivals)),
             "max_arrival_error_s": max(lateness) if lateness else float("nan"),

@@ -11,39 +11,23 @@ listener. The estimate at each tick is compared with the truth at that tick.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from onboard.plant.sensors import InterfaceModules, SensorFaults, SensorNoise, TimeWindow
-from onboard.sfa.drive import SpeedProfileDrive
-from onboard.sfa.link import FaultyLink, LinkFaults
-from onboard.sfa.listener import Health, ListenerConfig, ListenerCore
+from deploy.bench.sfa_drive import DriveSettings, SpeedProfileDrive
+from deploy.bench.sfa_recording import Recording
+from onboard.plant.sensors import InterfaceModules, TimeWindow
+from onboard.sfa.link import FaultyLink
+from onboard.sfa.listener import Health, ListenerCore
 from onboard.sfa.localisation import Localisation
-from onboard.sfa.recording import Recording
+from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap, load_seed_line
 
 __all__ = ["DriveResult", "DriveSettings", "ErrorStats", "run_lockstep"]
 
 FloatArray = npt.NDArray[np.float64]
-MPS_TO_KMH = 3.6
-
-
-@dataclass(frozen=True, kw_only=True)
-class DriveSettings:
-    """One emulated drive: the line, how it is driven, the sensors and the faults."""
-
-    line_id: str = "bologna-ring"
-    duration_s: float = 600.0
-    cruise_kmh: float = 80.0
-    start_m: float = 0.0
-    seed: int = 0
-    noise: SensorNoise = field(default_factory=SensorNoise)
-    sensor_faults: SensorFaults = field(default_factory=SensorFaults)
-    link_faults: LinkFaults = field(default_factory=LinkFaults)
-    listener: ListenerConfig = field(default_factory=ListenerConfig)
-    record: bool = False
 
 
 @dataclass(frozen=True)
@@ -63,7 +47,7 @@ class ErrorStats:
             samples=int(position_errors_m.size),
             position_rms_m=float(np.sqrt(np.mean(position_errors_m**2))),
             position_max_m=float(np.max(np.abs(position_errors_m))),
-            speed_rms_kmh=float(np.sqrt(np.mean(speed_errors_mps**2)) * MPS_TO_KMH),
+            speed_rms_kmh=float(np.sqrt(np.mean(speed_errors_mps**2)) / MPS_PER_KMH),
         )
 
 

@@ -8,8 +8,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from deploy.plant_plots import _figure
-from onboard.adf.closed_loop import HandoverRecord
+from deploy.bench.adf_closed_loop import HandoverRecord
+from deploy.bench.plant_plots import _figure
+from protocol.units import MPS_PER_KMH
 
 __all__ = ["HANDOVER_PLOT", "write_handover_plot"]
 
@@ -33,7 +34,7 @@ def write_handover_plot(record: HandoverRecord, directory: Path) -> Path:
             start = index
     force_ax.plot(times, record.forces_n / 1000.0, color="black", linewidth=1.0)
     force_ax.set_ylabel("applied force u [kN]")
-    speed_ax.plot(times, record.speeds_mps * 3.6, color="tab:red", linewidth=1.0)
+    speed_ax.plot(times, record.speeds_mps / MPS_PER_KMH, color="tab:red", linewidth=1.0)
     speed_ax.set_ylabel("speed [km/h]")
     path = directory / HANDOVER_PLOT
     figure.savefig(path, dpi=110)

@@ -3,23 +3,45 @@
 A deliberately simple driver (not the ADF): it tracks the lower of a cruise speed and the line's
 speed limit a braking distance ahead, with a proportional force law on the point-mass plant of
 :mod:`onboard.plant.point_mass`, and brakes to a stop before the end of a line that is not a
-ring. It exists so that the sensor-fusion chain can be exercised and measured on its own.
+ring. It exists so that the sensor-fusion chain can be exercised and measured on its own
+(:mod:`deploy.bench.sfa_lockstep`, :mod:`deploy.bench.sfa_emulator`); :class:`DriveSettings`
+says which drive, with which sensors and faults.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from dataclasses import dataclass, field
 
 from onboard.plant.point_mass import URV_PARAMETERS, PointMassModel, PointMassParameters
-from onboard.plant.sensors import TruthSample
+from onboard.plant.sensors import SensorFaults, SensorNoise, TruthSample
+from onboard.sfa.link import LinkFaults
+from onboard.sfa.listener import ListenerConfig
+from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap
 
-__all__ = ["SpeedProfileDrive"]
+__all__ = ["DriveSettings", "SpeedProfileDrive"]
 
 PLANNING_DECELERATION_MPS2 = 0.5
 END_MARGIN_M = 300.0
 SPEED_GAIN_PER_S = 0.8
+
+
+@dataclass(frozen=True, kw_only=True)
+class DriveSettings:
+    """One emulated drive: the line, how it is driven, the sensors and the faults."""
+
+    line_id: str = "bologna-ring"
+    duration_s: float = 600.0
+    cruise_kmh: float = 80.0
+    start_m: float = 0.0
+    seed: int = 0
+    noise: SensorNoise = field(default_factory=SensorNoise)
+    sensor_faults: SensorFaults = field(default_factory=SensorFaults)
+    link_faults: LinkFaults = field(default_factory=LinkFaults)
+    listener: ListenerConfig = field(default_factory=ListenerConfig)
+    record: bool = False
 
 
 class SpeedProfileDrive:
@@ -47,7 +69,7 @@ class SpeedProfileDrive:
         parameters: PointMassParameters = URV_PARAMETERS,
     ) -> None:
         self.track_map = track_map
-        self.cruise_mps = cruise_kmh / 3.6
+        self.cruise_mps = cruise_kmh * MPS_PER_KMH
         self.dt_s = dt_s
         self.plant = PointMassModel(parameters, position_m=start_m)
         self.time_s = 0.0

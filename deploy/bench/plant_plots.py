@@ -1,7 +1,7 @@
 """Figures of seed 003 §7 results (1)–(4), written as PNG files by ``ato bench plant --plots``.
 
-(1) and (2) come from :func:`onboard.vcu.mission.run_energy_mission` on the point mass;
-(3) and (4) from :func:`onboard.vcu.manoeuvres.run_manoeuvre` on the bogie model with the VCU
+(1) and (2) come from :func:`deploy.bench.vcu_mission.run_energy_mission` on the point mass;
+(3) and (4) from :func:`deploy.bench.vcu_manoeuvres.run_manoeuvre` on the bogie model with the VCU
 in the loop. Matplotlib draws on its non-interactive Agg canvas, chosen here explicitly (no
 pyplot, no global backend), and is imported only when figures are asked for.
 """
@@ -13,14 +13,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from onboard.vcu.manoeuvres import (
+from deploy.bench.vcu_manoeuvres import (
     ManoeuvreRecord,
     acceleration_manoeuvre,
     braking_manoeuvre,
     friction_drop_manoeuvre,
     run_manoeuvre,
 )
-from onboard.vcu.mission import MissionRecord, run_energy_mission
+from deploy.bench.vcu_mission import MissionRecord, run_energy_mission
+from protocol.units import MPS_PER_KMH
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -38,7 +39,6 @@ PLOT_FILES = (
 """File names, in the order of seed 003 §7's results."""
 
 KW_PER_W = 1e-3
-KMH_PER_MPS = 3.6
 PHASE_COLOURS = {"electric": "tab:green", "blended": "tab:olive", "pneumatic": "tab:grey"}
 
 
@@ -59,7 +59,7 @@ def _figure(rows: int, title: str) -> tuple[Figure, list[Axes]]:
 def _mission_figure(record: MissionRecord, title: str) -> Figure:
     figure, (speed_ax, power_ax) = _figure(2, title)
     minutes = record.time_s / 60.0
-    speed_ax.plot(minutes, record.speed_mps * KMH_PER_MPS, color="tab:blue", label="speed")
+    speed_ax.plot(minutes, record.speed_mps / MPS_PER_KMH, color="tab:blue", label="speed")
     speed_ax.set_ylabel("speed [km/h]")
     speed_ax.set_ylim(0.0, 220.0)
     soc_ax = speed_ax.twinx()
@@ -92,7 +92,7 @@ def _acceleration_figure(forwards: ManoeuvreRecord, reverse: ManoeuvreRecord) ->
     figure, (speed_ax, forward_ax, reverse_ax) = _figure(
         3, "Seed 003 §7.3: acceleration, front/rear torque split"
     )
-    speed_ax.plot(forwards.time_s, forwards.speed_mps * KMH_PER_MPS, label="speed")
+    speed_ax.plot(forwards.time_s, forwards.speed_mps / MPS_PER_KMH, label="speed")
     speed_ax.set_ylabel("speed [km/h]")
     force_ax = speed_ax.twinx()
     force_ax.plot(forwards.time_s, forwards.force_demand_n * KW_PER_W, color="tab:red")
@@ -104,7 +104,7 @@ def _acceleration_figure(forwards: ManoeuvreRecord, reverse: ManoeuvreRecord) ->
 
 def _braking_figure(record: ManoeuvreRecord) -> Figure:
     figure, (speed_ax, torque_ax) = _figure(2, "Seed 003 §7.3: braking in three phases")
-    speed_ax.plot(record.time_s, record.speed_mps * KMH_PER_MPS, label="speed")
+    speed_ax.plot(record.time_s, record.speed_mps / MPS_PER_KMH, label="speed")
     speed_ax.set_ylabel("speed [km/h]")
     for phase, colour in PHASE_COLOURS.items():
         inside = record.braking_phase == phase
@@ -126,12 +126,12 @@ def _braking_figure(record: ManoeuvreRecord) -> Figure:
 
 def _friction_figure(record: ManoeuvreRecord) -> Figure:
     figure, (speed_ax, torque_ax) = _figure(2, "Seed 003 §7.4: sharp friction drop")
-    speed_ax.plot(record.time_s, record.speed_mps * KMH_PER_MPS, label="true speed")
+    speed_ax.plot(record.time_s, record.speed_mps / MPS_PER_KMH, label="true speed")
     speed_ax.plot(
-        record.time_s, record.wheel_speed_front_mps * KMH_PER_MPS, label="front wheel (ω R)"
+        record.time_s, record.wheel_speed_front_mps / MPS_PER_KMH, label="front wheel (ω R)"
     )
     speed_ax.plot(
-        record.time_s, record.wheel_speed_rear_mps * KMH_PER_MPS, "--", label="rear wheel (ω R)"
+        record.time_s, record.wheel_speed_rear_mps / MPS_PER_KMH, "--", label="rear wheel (ω R)"
     )
     speed_ax.set_ylabel("speed [km/h]")
     speed_ax.legend(loc="upper left")

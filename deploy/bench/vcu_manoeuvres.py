@@ -1,7 +1,7 @@
 """Short closed-loop manoeuvres on the bogie model: VCU → 10-DOF bogie + powertrain → VCU.
 
 Seed 003 §7.3–7.4 show the VCU's torque split, blended braking and slip protection, which the
-point mass of :mod:`onboard.vcu.mission` cannot show (it has no wheels). Here the VCU commands
+point mass of :mod:`deploy.bench.vcu_mission` cannot show (it has no wheels). Here the VCU commands
 :class:`~onboard.plant.bogie.BogieModel` and :class:`~onboard.plant.powertrain.Powertrain`
 every ``dt_s`` and reads back, as over its CAN buses:
 
@@ -15,8 +15,10 @@ every ``dt_s`` and reads back, as over its CAN buses:
 
 The drives' powers come from the plant's actual motor torques (after their lag and torque–speed
 curve) times the axles' speeds. The VCU's parameters are derived from the bogie's
-(:func:`vcu_parameters_for`) so that the torques and pressures it commands mean to the plant
-what the VCU means by them.
+(:func:`~onboard.vcu.feedback.vcu_parameters_for`) so that the torques and pressures it
+commands mean to the plant what the VCU means by them. A bench of the VCU alone
+(``ato bench plant --plots``, the seed 003 tests); the onboard process runs the same loop in
+:class:`onboard.vcu.vehicle.BogieVehicle`.
 """
 
 from __future__ import annotations
@@ -31,10 +33,12 @@ import numpy.typing as npt
 
 from onboard.plant.bogie import BogieModel
 from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS, BogieParameters
-from onboard.plant.interfaces import ActuatorCommands, BogieTruth
+from onboard.plant.interfaces import ActuatorCommands
 from onboard.plant.powertrain import Powertrain, PowertrainParameters
-from onboard.vcu.parameters import VcuInputs, VcuParameters, powertrain_feedback
+from onboard.vcu.feedback import step_powertrain, vcu_inputs, vcu_parameters_for
+from onboard.vcu.parameters import VcuParameters
 from onboard.vcu.unit import VehicleControlUnit
+from protocol.units import MPS_PER_KMH
 
 __all__ = [
     "ACCELERATION_FORCE_N",
@@ -49,9 +53,6 @@ __all__ = [
     "braking_manoeuvre",
     "friction_drop_manoeuvre",
     "run_manoeuvre",
-    "step_powertrain",
-    "vcu_inputs",
-    "vcu_parameters_for",
 ]
 
 MANOEUVRE_STEP_S = 0.01
@@ -174,7 +175,7 @@ def braking_manoeuvre() -> Manoeuvre:
     """Seed 003 §7.3 (fig. 14c,d): from 60 km/h to a stop under a 15 kN braking demand."""
     return Manoeuvre(
         duration_s=25.0,
-        initial_speed_mps=60.0 / 3.6,
+        initial_speed_mps=60.0 * MPS_PER_KMH,
         force_demand_n=_ramp(-BRAKING_FORCE_N, BRAKING_FORCE_N),
         stop_below_mps=0.05,
     )
@@ -191,53 +192,6 @@ def friction_drop_manoeuvre(*, adhesion: bool = True) -> Manoeuvre:
     )
 
 
-def vcu_parameters_for(
-    bogie: BogieParameters = URV_BOGIE_PARAMETERS, base: VcuParameters | None = None
-) -> VcuParameters:
-    """VCU parameters whose plant constants are the bogie's: wheel radius [m], motor torque
-    [N·m] and power [W] per wheelset, brake gain [N·m/Pa] and maximum pressure [Pa].
-
-    The VCU's defaults assume 6.9e-3 N·m/Pa up to 5 bar; the bogie's brakes give 1.035e-2 N·m/Pa
-    up to 4 bar, so without this the VCU's pressures would brake half as hard again as meant.
-    """
-    return dataclasses.replace(
-        base if base is not None else VcuParameters(),
-        wheel_radius_m=bogie.wheel_radius_m,
-        max_motor_torque_nm=bogie.motor_max_torque_nm,
-        max_motor_power_w=bogie.motor_max_power_w,
-        brake_gain_nm_per_pa=bogie.brake_gain_m3,
-        max_brake_pressure_pa=bogie.brake_max_pressure_pa,
-    )
-
-
-def vcu_inputs(
-    direction: int, truth: BogieTruth, fused_mps: float, force_n: float, pt: Powertrain
-) -> VcuInputs:
-    """What the VCU reads over its buses: the demand, speeds, the BMS and the drives."""
-    return powertrain_feedback(
-        pt,
-        VcuInputs(
-            force_demand_n=force_n,
-            direction=direction,
-            fused_speed_mps=fused_mps,
-            wheel_speed_front_radps=abs(truth.wheel_speed_front_radps),
-            wheel_speed_rear_radps=abs(truth.wheel_speed_rear_radps),
-        ),
-    )
-
-
-def step_powertrain(pt: Powertrain, dt_s: float, truth: BogieTruth, re_w: float) -> None:
-    """Feed the powertrain the drives' actual mechanical powers and the RE reference [W]."""
-    pt.step(
-        dt_s,
-        mechanical_power_front_w=truth.motor_torque_front_nm * truth.wheel_speed_front_radps,
-        mechanical_power_rear_w=truth.motor_torque_rear_nm * truth.wheel_speed_rear_radps,
-        range_extender_reference_w=re_w,
-        motor_torque_front_nm=truth.motor_torque_front_nm,
-        motor_torque_rear_nm=truth.motor_torque_rear_nm,
-    )
-
-
 def run_manoeuvre(
     manoeuvre: Manoeuvre,
     *,
@@ -248,8 +202,9 @@ def run_manoeuvre(
 ) -> ManoeuvreRecord:
     """Run ``manoeuvre`` in closed loop on level track and return its time series.
 
-    ``vcu_parameters`` defaults to :func:`vcu_parameters_for` the bogie. The bogie model runs
-    about 25× faster than real time, so a 20 s manoeuvre takes under a second.
+    ``vcu_parameters`` defaults to :func:`~onboard.vcu.feedback.vcu_parameters_for` the
+    bogie. The bogie model runs about 25× faster than real time, so a 20 s manoeuvre takes
+    under a second.
     """
     if manoeuvre.direction not in (1, -1) or manoeuvre.duration_s <= 0.0 or dt_s <= 0.0:
         raise ValueError("a manoeuvre needs direction ±1 and a positive duration and step")

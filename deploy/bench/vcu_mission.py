@@ -21,8 +21,10 @@ import numpy.typing as npt
 
 from onboard.plant.point_mass import URV_PARAMETERS, PointMassModel, PointMassParameters
 from onboard.plant.powertrain import Powertrain, PowertrainParameters
-from onboard.vcu.parameters import VcuInputs, VcuParameters, powertrain_feedback
+from onboard.vcu.feedback import powertrain_feedback
+from onboard.vcu.parameters import VcuInputs, VcuParameters
 from onboard.vcu.unit import VehicleControlUnit
+from protocol.units import MPS_PER_KMH
 
 __all__ = ["SEED003_MISSION_VEHICLE", "MissionRecord", "run_energy_mission"]
 
@@ -50,7 +52,7 @@ def run_energy_mission(
     *,
     initial_soc: float,
     distance_m: float = 200_000.0,
-    speed_reference_mps: float = 200.0 / 3.6,
+    speed_reference_mps: float = 200.0 * MPS_PER_KMH,
     dt_s: float = 0.1,
     record_every_s: float = 10.0,
     vehicle: PointMassParameters = SEED003_MISSION_VEHICLE,

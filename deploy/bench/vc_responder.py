@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 
 from onboard.runtime.clock import NS_PER_S
-from onboard.vc._exceptions import VcInputError
+from onboard.vc import VcInputError
 from onboard.vc.link import FaultyLink
 from onboard.vc.messages import (
     SECTIONS,

@@ -27,12 +27,19 @@ import random
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
+from deploy.bench.vc_responder import AtoObResponder, ResponderFault
+from deploy.bench.vc_scenarios import (
+    SEED_HAZARDOUS_COUNTS,
+    SEED_SCENARIO_COUNT,
+    HazardKind,
+    OutcomeClass,
+    Scenario,
+    ScenarioError,
+)
 from onboard.etcs.balises import TelegramHeader
 from onboard.etcs.values import URV_TRAIN_DATA
 from onboard.runtime import Executive, SimClock
 from onboard.runtime.clock import NS_PER_S
-from onboard.vc._exceptions import ScenarioError
-from onboard.vc.config import KMH
 from onboard.vc.fsm import FsmCoverage, FsmTransition, transition_coverage
 from onboard.vc.hardware import (
     EmergencyBrakeValves,
@@ -45,14 +52,7 @@ from onboard.vc.ipc import Delivery, VcEvent, VcEventKind
 from onboard.vc.link import LinkFault
 from onboard.vc.module import TASK_B_PRIORITY, VcHardware, VitalControl
 from onboard.vc.redundancy import PairEvent, TwoOutOfTwo
-from onboard.vc.responder import AtoObResponder, ResponderFault
-from onboard.vc.scenarios import (
-    SEED_HAZARDOUS_COUNTS,
-    SEED_SCENARIO_COUNT,
-    HazardKind,
-    OutcomeClass,
-    Scenario,
-)
+from protocol.units import MPS_PER_KMH
 
 __all__ = [
     "ATO_OB_PRIORITY",
@@ -168,7 +168,7 @@ class _Surroundings:
         target = 0.0
         for item in self._targets:
             if item.from_s <= now_s:
-                target = item.speed_kmh * KMH
+                target = item.speed_kmh * MPS_PER_KMH
         return target
 
     def step_ns(self, release_ns: int) -> None:
@@ -414,7 +414,9 @@ def _result(
         decay_evidence_s=decay.evidence_s if decay else None,
         rearmed_s=rearms[-1] if rearms else None,
         speed_at_intervention_kmh=(
-            surroundings.speed_at(intervention_s) / KMH if intervention_s is not None else None
+            surroundings.speed_at(intervention_s) / MPS_PER_KMH
+            if intervention_s is not None
+            else None
         ),
         decay_reasons=vc.outputs.decay_reasons,
         events=tuple(events),

@@ -26,9 +26,11 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from deploy.bench.sfa_drive import DriveSettings
+from deploy.bench.sfa_lockstep import run_lockstep
 from onboard.plant.sensors import SensorFaults, TimeWindow
-from onboard.sfa import DriveSettings, LinkFaults, ListenerConfig, ListenerCore, run_lockstep
-from onboard.sfa.runner import ListenerRunner
+from onboard.sfa import LinkFaults, ListenerConfig, ListenerCore
+from onboard.sfa.sockets import ListenerRunner
 from protocol.udp import SEQ_MODULO, InputPacket, SensorType, encode_input
 from trackdb import TrackMap, load_seed_line
 

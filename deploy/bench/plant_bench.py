@@ -6,7 +6,7 @@ mission: 200 km on level track at up to 200 km/h, from standstill to standstill,
 a proportional speed controller on a braking curve, equal torque on both axles in traction,
 pneumatic brakes alone to slow down. Targets: ≥ 10× real time for the bogie model, and ≤ 5 µs
 per 10 ms step of the point-mass model (median and p99 of single timed calls, as
-:func:`deploy.bench_trackdb.time_calls` times them).
+:func:`deploy.bench.trackdb_bench.time_calls` times them).
 """
 
 from __future__ import annotations
@@ -20,11 +20,12 @@ from pathlib import Path
 from rich.console import Console
 from rich.table import Table
 
-from deploy.bench_trackdb import time_calls
+from deploy.bench.trackdb_bench import time_calls
 from onboard.plant.bogie import DEFAULT_SUBSTEP_S, BogieModel
 from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS, BogieParameters
 from onboard.plant.interfaces import ActuatorCommands
 from onboard.plant.point_mass import URV_PARAMETERS, PointMassModel
+from protocol.units import MPS_PER_KMH
 
 __all__ = [
     "MISSION_DISTANCE_KM",
@@ -76,7 +77,7 @@ def stand_in_driver(
 
 def _run_mission(distance_km: float, max_speed_kmh: float) -> dict[str, float]:
     stop_m = distance_km * 1000.0
-    max_speed_mps = max_speed_kmh / 3.6
+    max_speed_mps = max_speed_kmh * MPS_PER_KMH
     model = BogieModel()
     # Generous: the cruise, the acceleration and the braking, and a minute to settle.
     limit_s = stop_m / max_speed_mps + 2.0 * max_speed_mps / DRIVER_DECELERATION_MPS2 + 60.0
@@ -97,7 +98,7 @@ def _run_mission(distance_km: float, max_speed_kmh: float) -> dict[str, float]:
         "wall_s": wall_s,
         "real_time_factor": truth.time_s / wall_s,
         "distance_km": truth.position_m / 1000.0,
-        "top_speed_kmh": top_mps * 3.6,
+        "top_speed_kmh": top_mps / MPS_PER_KMH,
         "traction_energy_kwh": truth.traction_energy_j / 3.6e6,
     }
 
@@ -146,7 +147,7 @@ def bench_plant(
     plots_dir : Path or None
         When given, also run seed 003 §7's results (1)–(4) (energy missions of
         ``distance_km`` on the point mass, manoeuvres on the bogie model with the VCU) and
-        write their PNG figures there (:mod:`deploy.plant_plots`).
+        write their PNG figures there (:mod:`deploy.bench.plant_plots`).
 
     Returns
     -------
@@ -188,7 +189,7 @@ def bench_plant(
         f" {DEFAULT_SUBSTEP_S * 1000:g} ms), driven by a stand-in speed loop, not the VCU."
     )
     if plots_dir is not None:
-        from deploy.plant_plots import write_plots
+        from deploy.bench.plant_plots import write_plots
 
         for path in write_plots(plots_dir, distance_km=distance_km):
             console.print(f"wrote {path}")

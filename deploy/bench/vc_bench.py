@@ -22,17 +22,11 @@ from dataclasses import dataclass, field, replace
 from rich.console import Console
 from rich.table import Table
 
+from deploy.bench.vc_responder import AtoObResponder
 from onboard.runtime import Clock, Executive, RealTimeClock, SimClock
 from onboard.runtime.clock import NS_PER_S
 from onboard.runtime.executive import StepFunction
-from onboard.vc import (
-    AtoObResponder,
-    Delivery,
-    TachometerBoard,
-    VcConfig,
-    VcHardware,
-    VitalControl,
-)
+from onboard.vc import Delivery, TachometerBoard, VcConfig, VcHardware, VitalControl
 
 __all__ = ["DEADLINE_S", "TaskTiming", "bench_vc"]
 

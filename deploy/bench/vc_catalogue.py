@@ -14,6 +14,13 @@ ATO-OB has answered, the worst phase for the VC.
 
 from __future__ import annotations
 
+from deploy.bench.vc_responder import (
+    OperatorAction,
+    OperatorActionKind,
+    ResponderFault,
+    ResponderFaultKind,
+)
+from deploy.bench.vc_scenarios import Hazard, HazardKind, OutcomeClass, Scenario, SpeedTarget
 from onboard.vc.hardware import (
     PipeFault,
     RelayFault,
@@ -22,13 +29,6 @@ from onboard.vc.hardware import (
 )
 from onboard.vc.link import LinkDirection, LinkFault, LinkFaultKind
 from onboard.vc.messages import Section
-from onboard.vc.responder import (
-    OperatorAction,
-    OperatorActionKind,
-    ResponderFault,
-    ResponderFaultKind,
-)
-from onboard.vc.scenarios import Hazard, HazardKind, OutcomeClass, Scenario, SpeedTarget
 
 __all__ = ["CATALOGUE", "scenario"]
 

@@ -5,7 +5,7 @@ the faults (on the link, in the ATO-OB, on the tachometer board, the relay, the 
 balise telegrams, and the outcome class the seeds' taxonomy expects (seed 001 §IV.B:
 none / EB with safe recovery / EB then System Decay / System Decay at standstill). Its
 :class:`Hazard` says from when intervention times are measured. The catalogue is in
-:mod:`onboard.vc.catalogue`; :mod:`onboard.vc.runner` runs one in lockstep.
+:mod:`deploy.bench.vc_catalogue`; :mod:`deploy.bench.vc_runner` runs one in lockstep.
 """
 
 from __future__ import annotations
@@ -14,11 +14,10 @@ import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 
-from onboard.vc._exceptions import ScenarioError
+from deploy.bench.vc_responder import OperatorAction, ResponderFault
 from onboard.vc.config import VcConfig
 from onboard.vc.hardware import FULL_EB_DELAY_S, PipeFault, RelayFault, TachometerFault
 from onboard.vc.link import LinkFault
-from onboard.vc.responder import OperatorAction, ResponderFault
 
 __all__ = [
     "SEED_HAZARDOUS_COUNTS",
@@ -28,8 +27,14 @@ __all__ = [
     "HazardKind",
     "OutcomeClass",
     "Scenario",
+    "ScenarioError",
     "SpeedTarget",
 ]
+
+
+class ScenarioError(ValueError):
+    """A scenario of the catalogue that cannot be run: a fault window that ends before it
+    starts, an action after the run."""
 
 
 class OutcomeClass(StrEnum):

@@ -21,9 +21,9 @@ import statistics
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
-from onboard.vc.catalogue import scenario
-from onboard.vc.runner import ScenarioResult, run_scenario
-from onboard.vc.scenarios import Scenario
+from deploy.bench.vc_catalogue import scenario
+from deploy.bench.vc_runner import ScenarioResult, run_scenario
+from deploy.bench.vc_scenarios import Scenario
 
 __all__ = [
     "FUSED_COMPARISON_KEYS",

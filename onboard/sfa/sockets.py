@@ -1,10 +1,14 @@
-"""The sensor-fusion chain over real UDP sockets (seed 002 §4.1.1, the online configuration).
+"""The sensor-fusion listener and the OBCU on real UDP sockets (seed 002 §4.1.1, the online
+configuration; ``ato sfa listen``).
 
 - :class:`ListenerRunner`: the listener process. INPUT datagrams on one socket, OUTPUT datagrams
   to the OBCU from a second socket, whose address is where the OBCU's ACKs come back.
 - :class:`ObcuEndpoint`: a :class:`~onboard.sfa.localisation.Localisation` behind a socket:
   OUTPUT datagrams in, ACKs to their source address.
-- :func:`send_drive`: the interface-modules emulator on a socket, paced against a clock.
+- :func:`parse_address`: ``HOST:PORT`` options.
+
+The interface-modules emulator that feeds a listener from an emulated drive
+(``ato sfa emulate``) is a bench: :func:`deploy.bench.sfa_emulator.send_drive`.
 
 Sockets are opened by the constructors (never at import) and read without blocking; the time
 comes from the clock passed in (``time.monotonic`` by default), the boundary where wall time
@@ -13,7 +17,6 @@ enters.
 
 from __future__ import annotations
 
-import itertools
 import logging
 import select
 import socket
@@ -22,18 +25,11 @@ import time
 from collections.abc import Callable
 from types import TracebackType
 
-import numpy as np
-
-from onboard.plant.sensors import InterfaceModules
 from onboard.sfa._exceptions import AddressError
-from onboard.sfa.drive import SpeedProfileDrive
-from onboard.sfa.link import FaultyLink
 from onboard.sfa.listener import ListenerCore
 from onboard.sfa.localisation import Localisation
-from onboard.sfa.lockstep import DriveSettings
-from trackdb import TrackMap
 
-__all__ = ["ListenerRunner", "ObcuEndpoint", "parse_address", "send_drive"]
+__all__ = ["Address", "Clock", "ListenerRunner", "ObcuEndpoint", "parse_address"]
 
 log = logging.getLogger(__name__)
 Address = tuple[str, int]
@@ -205,47 +201,3 @@ class ObcuEndpoint:
                     self.socket.sendto(ack, self._source)
                 except OSError:
                     self.send_errors += 1
-
-
-def send_drive(
-    settings: DriveSettings,
-    track_map: TrackMap,
-    destination: Address,
-    *,
-    speed_factor: float = 1.0,
-    clock: Clock = time.monotonic,
-    sleep: Callable[[float], None] = time.sleep,
-) -> int:
-    """Emulate a drive and send its datagrams over UDP, paced at ``speed_factor`` × real time
-    (``inf``: as fast as possible); link faults are applied before sending. Returns the number
-    of datagrams sent."""
-    rng = np.random.default_rng(settings.seed)
-    drive = SpeedProfileDrive(track_map, start_m=settings.start_m, cruise_kmh=settings.cruise_kmh)
-    modules = InterfaceModules(
-        track_map, rng=rng, noise=settings.noise, faults=settings.sensor_faults
-    )
-    link = FaultyLink(settings.link_faults, rng)
-    sent = 0
-    started_s = clock()
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        truths = drive.run(settings.duration_s)
-        first = next(truths)
-        for datagram in modules.start(first):
-            link.send(datagram, first.time_s)
-        for truth in itertools.chain([first], truths):
-            for datagram in modules.step(truth):
-                link.send(datagram, truth.time_s)
-            due = link.deliver(truth.time_s)
-            if speed_factor != float("inf"):
-                ahead_s = truth.time_s / speed_factor - (clock() - started_s)
-                if ahead_s > 0:
-                    sleep(ahead_s)
-            for datagram, _ in due:
-                sock.sendto(datagram, destination)
-                sent += 1
-        for datagram in modules.stop():
-            link.send(datagram, drive.time_s)
-        for datagram, _ in link.drain():
-            sock.sendto(datagram, destination)
-            sent += 1
-    return sent

@@ -19,6 +19,7 @@ from onboard.adf.odp_energy import replan_from_state
 from onboard.adf.rd_controller import RemoteDrivingController
 from onboard.adf.supervisor import ModeRequest, SupervisoryController
 from onboard.plant.point_mass import PointMassModel, PointMassParameters
+from protocol.units import GRAVITY_MPS2, MPS_PER_KMH
 from trackdb import TrackMap
 
 __all__ = [
@@ -138,11 +139,11 @@ def run_handover_sequence(
     plant = PointMassModel(truth)
     sc = SupervisoryController()
     rd = RemoteDrivingController(
-        mass_kg=model.mass_kg, rolling_coefficient=model.davis_a_n / (model.mass_kg * 9.81)
+        mass_kg=model.mass_kg, rolling_coefficient=model.davis_a_n / (model.mass_kg * GRAVITY_MPS2)
     )
     nmpc = NmpcController(model, NmpcConfig(step_s=control_s))
     autonomous: AutonomousDriving | None = None
-    target_mps = 30 / 3.6
+    target_mps = 30 * MPS_PER_KMH
     sc.request(ModeRequest.REMOTE, 0.0)
     times: list[float] = []
     forces: list[float] = []
@@ -159,12 +160,12 @@ def run_handover_sequence(
             plan = replan_from_state(
                 track_map, model, now_s=now, start_chainage_m=start_chainage_m,
                 distance_m=plant.position_m, speed_mps=plant.speed_mps, stop_distance_m=1200.0,
-                cruise_mps=40 / 3.6,
+                cruise_mps=40 * MPS_PER_KMH,
             )  # fmt: skip
             autonomous = AutonomousDriving(plan, model, nmpc)
             requests.append(ModeRequest.AUTONOMOUS)
         if k == round(100.0 / control_s):
-            target_mps = 20 / 3.6
+            target_mps = 20 * MPS_PER_KMH
             rd.align(forces[-1], speed_mps=plant.speed_mps, gradient_permille=gradient)
             requests.append(ModeRequest.REMOTE)
         limits = plant.force_limits_n(plant.speed_mps)
