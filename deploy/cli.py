@@ -98,6 +98,26 @@ def onboard(
     fidelity: Annotated[
         str, typer.Option("--fidelity", help="Plant: point_mass or bogie (VCU + 10-DOF bogie).")
     ] = "point_mass",
+    vc_replicas: Annotated[
+        int,
+        typer.Option(
+            "--vc-replicas",
+            min=1,
+            max=2,
+            help="VC boards: 2 in 2-out-of-2 with voter and watchdog (the vehicle's), 1 alone.",
+        ),
+    ] = 2,
+    vc_datalog: Annotated[
+        Path | None,
+        typer.Option(
+            "--vc-datalog",
+            help="The VC's datalog (JSON Lines; `ato vc replay` reads "
+            "it). Default: .ato/vc/VEHICLE.jsonl.",
+        ),
+    ] = None,
+    no_vc_datalog: Annotated[
+        bool, typer.Option("--no-vc-datalog", help="Do not record the VC's datalog.")
+    ] = False,
     verbose: bool = False,
 ) -> None:
     """Run one ATO-OB process."""
@@ -108,11 +128,13 @@ def onboard(
         raise typer.BadParameter("--speed must be positive")
     if fidelity not in ("point_mass", "bogie"):
         raise typer.BadParameter("--fidelity must be point_mass or bogie")
+    datalog = vc_datalog or Path(".ato/vc") / f"{vehicle}.jsonl"
     stop = threading.Event()
     with stop_on_signals(stop):
         run_onboard(
             vehicle, zenoh=ZenohSettings(connect=(zenoh,)), line_id=line, speed_factor=speed,
             stop=stop, fidelity=fidelity,  # type: ignore[arg-type]
+            vc_replicas=vc_replicas, vc_datalog=None if no_vc_datalog else datalog,
         )  # fmt: skip
 
 

@@ -91,7 +91,10 @@ def run_demo(*, port: int, data_dir: Path) -> None:
         admin_password=DEMO_PASSWORD,
         simulated_operators=(DEMO_VEHICLE,),
     )
-    onboard_args = ato_command("onboard", "--vehicle", DEMO_VEHICLE, "--zenoh", DEMO_ROUTER)
+    # The vehicle's VC: two boards in 2-out-of-2 (the default), recording its datalog.
+    datalog = data_dir / "vc" / f"{DEMO_VEHICLE}.jsonl"
+    onboard_args = ato_command("onboard", "--vehicle", DEMO_VEHICLE, "--zenoh", DEMO_ROUTER,
+                               "--vc-datalog", str(datalog))  # fmt: skip
     with child_process(onboard_args, log_file=data_dir / f"onboard-{DEMO_VEHICLE}.log"):
         driver = threading.Thread(target=_demo_driver, args=(stop,), daemon=True)
         driver.start()
@@ -102,6 +105,7 @@ def run_demo(*, port: int, data_dir: Path) -> None:
             f"Login:    user [bold]{DEMO_USER}[/bold]  password [bold]{DEMO_PASSWORD}[/bold]"
         )
         console.print(f"Vehicle:  {DEMO_VEHICLE} on bologna-ring, remote driving at 30 km/h")
+        console.print(f"VC:       2-out-of-2, datalog {datalog} (ato vc replay)")
         console.print(f"Logs:     {data_dir}/   Stop with Ctrl-C")
         console.rule()
         try:

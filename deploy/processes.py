@@ -73,12 +73,23 @@ def run_onboard(
     speed_factor: float,
     stop: threading.Event,
     fidelity: Fidelity = "point_mass",
+    vc_replicas: int = 2,
+    vc_datalog: Path | None = None,
 ) -> None:
-    """Run one vehicle's onboard in real time × ``speed_factor`` until ``stop`` is set."""
+    """Run one vehicle's onboard in real time × ``speed_factor`` until ``stop`` is set: the VC
+    is two boards in 2-out-of-2 by default, recording its datalog at ``vc_datalog`` if given."""
     track_map = TrackMap(load_seed_line(line_id))
+    if vc_datalog is not None:
+        vc_datalog.parent.mkdir(parents=True, exist_ok=True)
     with open_session(zenoh) as session:
         node = OnboardNode(
-            OnboardSettings(vehicle_id=vehicle_id, line_id=line_id, fidelity=fidelity),
+            OnboardSettings(
+                vehicle_id=vehicle_id,
+                line_id=line_id,
+                fidelity=fidelity,
+                vc_replicas=vc_replicas,
+                vc_datalog=vc_datalog,
+            ),  # fmt: skip
             session=session,
             clock=RealTimeClock(speed_factor),
             track_map=track_map,

@@ -156,7 +156,8 @@ class Fleet:
             fleet.parts.append(Part(
                 f"onboard-{vehicle}",
                 _ato("onboard", "--vehicle", vehicle, "--zenoh", endpoint, "--line", plan.line,
-                     "--speed", str(plan.speed), "--fidelity", plan.fidelity),
+                     "--speed", str(plan.speed), "--fidelity", plan.fidelity,
+                     "--vc-datalog", str(plan.data_dir / "vc" / f"{vehicle}.jsonl")),
                 logs / f"onboard-{vehicle}.log",
             ))  # fmt: skip
         return fleet

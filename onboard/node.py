@@ -3,9 +3,17 @@
 The node declares the vehicle's liveliness token, holds the session with the trackside
 (``onboard.session``), answers trackside commands, takes journey profiles and RBC movement
 authorities, publishes status and events, and runs the onboard stack (``onboard.stack``: ETCS,
-ATO-OB controller, ADF) and the plant on the executive. Commands are validated and acknowledged
-on arrival, then executed at the next release of the ``commands`` task, so that what they change
-happens at a tick of simulated time.
+ATO-OB controller, ADF), the VCU, the sensor fusion and the Vital Control on the executive.
+
+The node is the process's composition root: it alone holds the simulated vehicle
+(:class:`~onboard.plant.vehicle.SimulatedVehicle`: the dynamics and the sensor models, the only
+part that reads the truth) and hands its outputs on: the interface-modules' datagrams to the
+sensor fusion, the axle-end sensors' readings and the BTM's balise groups to ETCS, the VCU and
+the VC, the drives' feedback to the ADF. It never reads the vehicle's state itself
+(``tests/test_truth_boundary.py`` checks which of its members the node touches).
+
+Commands are validated and acknowledged on arrival, then executed at the next release of the
+``commands`` task, so that what they change happens at a tick of simulated time.
 
 In lockstep (a :class:`SimClock`) two exchanges are made synchronous so that a run does not
 depend on how fast the wire is: the handshake waits for its answer, and the acknowledgement of
@@ -26,18 +34,25 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal
 
+import numpy as np
 import zenoh
 
 from onboard.etcs import EtcsError
 from onboard.plant import URV_PARAMETERS, PointMassModel
+from onboard.plant.balise_reader import BaliseReader, BaliseReaderFaults
+from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS
+from onboard.plant.sensors import InterfaceModules
+from onboard.plant.vehicle import BogiePlant, SimulatedVehicle
+from onboard.plant.wheel_sensors import WheelSensors
 from onboard.runtime import Clock, Executive, SimClock
 from onboard.runtime.clock import NS_PER_S
 from onboard.session import SessionClient
 from onboard.sfa.chain import SensorFusionChain, SensorSettings
-from onboard.stack import OnboardStack, Plant
+from onboard.stack import OnboardStack
 from onboard.vc import Datalog, DatalogRecorder, VcConfig
 from onboard.vc.installation import VcFaults, VcInstallation
-from onboard.vcu.vehicle import BogieVehicle
+from onboard.vcu import vcu_parameters_for
+from onboard.vcu.drive import VcuDrive
 from protocol import (
     LivelinessWatcher,
     ProtocolError,
@@ -67,7 +82,7 @@ from protocol.registry import (
 )
 from trackdb import TrackMap
 
-__all__ = ["Fidelity", "NODE_VC_CONFIG", "OnboardNode", "OnboardSettings", "Plant", "TASK_TABLE"]
+__all__ = ["Fidelity", "NODE_VC_CONFIG", "OnboardNode", "OnboardSettings", "TASK_TABLE"]
 
 _log = logging.getLogger(__name__)
 
@@ -116,12 +131,10 @@ class OnboardSettings:
     """The plant: the point-mass model, or the 10-DOF bogie model behind the VCU."""
     initial_soc: float = 0.9
     """The batteries' state of charge at start (the bogie model's powertrain)."""
-    localisation: Literal["fused", "truth"] = "fused"
-    """What the ATO-OB and the ADF take for the train's position and speed: the sensor-fusion
-    estimate (interface-modules emulator → link → listener → OBCU input, in this process), or
-    the plant's truth (for tests of other parts). ETCS keeps its own odometry either way."""
     sensors: SensorSettings = SensorSettings()
-    """The emulated sensors, their link to the listener, and their seed."""
+    """The emulated sensors, their link to the listener, and their seed. The ATO-OB and the ADF
+    drive on the sensor-fusion estimate (interface-modules emulator → link → listener → OBCU
+    input, in this process); ETCS on its own odometry."""
     etcs_id: int = 1
     train_length_m: float = 6.0
     energy_plans: bool = True
@@ -129,8 +142,9 @@ class OnboardSettings:
     vital_control: bool = True
     """Fit the Vital Control (its tasks B and C run every 2 ms)."""
     vc_config: VcConfig = NODE_VC_CONFIG
-    vc_replicas: int = 1
-    """1, or 2 for two VC boards in 2-out-of-2."""
+    vc_replicas: int = 2
+    """2 for two VC boards in 2-out-of-2 with the pair's voter and watchdog, as on the seeds'
+    vehicle; 1 for a single board (comparisons, tests of the board alone)."""
     vc_faults: VcFaults = VcFaults()
     vc_datalog: Path | None = None
     """Record the VC's notifications (JSON Lines) here; ``ato vc replay`` reads them."""
@@ -154,23 +168,22 @@ class OnboardNode:
         self.clock = clock
         self.lockstep = isinstance(clock, SimClock)
         self.executive = Executive(clock)
-        self.plant: Plant = (
-            BogieVehicle(position_m=settings.start_position_m, initial_soc=settings.initial_soc)
-            if settings.fidelity == "bogie"
-            else PointMassModel(URV_PARAMETERS, position_m=settings.start_position_m)
-        )
-        plant = self.plant
+        self.plant = _simulated_vehicle(settings, track_map, start_s=clock.now_s)
+        self.vcu = (
+            VcuDrive(vcu_parameters_for(URV_BOGIE_PARAMETERS))
+            if settings.fidelity == "bogie" else None
+        )  # fmt: skip
         vital = VcInstallation(
-            lambda: plant.position_m, config=settings.vc_config, replicas=settings.vc_replicas,
+            self._wheel_travel_m, config=settings.vc_config, replicas=settings.vc_replicas,
             faults=settings.vc_faults, start_s=clock.now_s,
         ) if settings.vital_control else None  # fmt: skip
-        self.sensor_fusion = (
-            SensorFusionChain(track_map, settings.sensors)
-            if settings.localisation == "fused" else None
-        )  # fmt: skip
+        self.sensor_fusion = SensorFusionChain(
+            track_map, settings.sensors, start_position_m=settings.start_position_m
+        )
         self.stack = OnboardStack(
-            track_map, self.plant, URV_PARAMETERS, start_s=clock.now_s,
-            energy_plans=settings.energy_plans, vital=vital, locator=self.sensor_fusion,
+            track_map, self.sensor_fusion, URV_PARAMETERS, self.plant.force_limits_n,
+            start_position_m=settings.start_position_m, start_s=clock.now_s,
+            energy_plans=settings.energy_plans, vital=vital,
         )  # fmt: skip
         self._datalog: Datalog | None = None
         self.track_database = self.stack.track_database
@@ -225,9 +238,7 @@ class OnboardNode:
         self._token = declare_liveliness(session, ALIVE_ONBOARD.format(vehicle=self.vehicle_id))
 
         for name, spec in TASK_TABLE.items():
-            if (name == "vital_link" and vital is None) or (
-                name == "sfa" and self.sensor_fusion is None
-            ):
+            if name == "vital_link" and vital is None:
                 continue
             self.executive.add_task(
                 name, getattr(self, f"_task_{name}"), period_s=spec.period_s,
@@ -429,20 +440,28 @@ class OnboardNode:
             self.emit(m.EventSeverity.WARNING, "command.refused",
                       f"command {command.command_id}: {refused}", now_ns=now_ns)  # fmt: skip
 
+    def _wheel_travel_m(self) -> tuple[float, float]:
+        """The (front, rear) axles' travel [m] as the axle-end sensors last read it."""
+        wheels = self.plant.wheels
+        return (0.0, 0.0) if wheels is None else (wheels.travel_front_m, wheels.travel_rear_m)
+
     def _task_plant(self, now_ns: int) -> None:
-        position = self.plant.position_m
-        self.plant.step(
-            TASK_TABLE["plant"].period_s,
-            self.stack.force_demand_n,
-            gradient_permille=self.track_map.gradient_permille(position),
-            curve_radius_m=self.track_map.curve_radius_m(position),
-            emergency_brake=self.stack.emergency_brake(now_ns / NS_PER_S),
-        )
+        """The VCU (bogie model) turns the force demand into actuator commands on the last
+        tick's readings; the vehicle moves, and its sensors sample."""
+        now_s, dt_s = now_ns / NS_PER_S, TASK_TABLE["plant"].period_s
+        plant, demand = self.plant, self.stack.force_demand_n
+        if self.vcu is not None:
+            wheels, powertrain = plant.wheels, plant.powertrain_reading()
+            assert wheels is not None and powertrain is not None
+            commands = self.vcu.step(dt_s, demand, fused_speed_mps=self.sensor_fusion.speed_mps,
+                                     wheels=wheels, powertrain=powertrain)  # fmt: skip
+            plant.step(now_s, dt_s, commands, emergency_brake=self.stack.emergency_brake(now_s))
+            return
+        plant.step(now_s, dt_s, demand, emergency_brake=self.stack.emergency_brake(now_s))
 
     def _task_sfa(self, now_ns: int) -> None:
-        assert self.sensor_fusion is not None
         now_s = now_ns / NS_PER_S
-        self.sensor_fusion.step(now_s, SensorFusionChain.truth(now_s, self.plant))
+        self.sensor_fusion.step(now_s, self.plant.take_datagrams())
         if self.stack.vital is not None:
             self.stack.vital.fused_speed(self.sensor_fusion.speed_mps, now_s)
 
@@ -450,11 +469,13 @@ class OnboardNode:
         self.stack.step_vital_link(now_ns / NS_PER_S)
 
     def _task_etcs(self, now_ns: int) -> None:
-        self.stack.step_etcs(now_ns / NS_PER_S)
+        plant = self.plant
+        self.stack.step_etcs(now_ns / NS_PER_S, plant.take_wheel_readings(),
+                             plant.take_balise_detections())  # fmt: skip
 
     def _task_control(self, now_ns: int) -> None:
         self.stack.session_alive = self.session_client.established
-        self.stack.step_control(now_ns / NS_PER_S)
+        self.stack.step_control(now_ns / NS_PER_S, self.plant.drive.applied_force_n)
 
     def _task_session(self, now_ns: int) -> None:
         """Handshake when due, take acknowledgements and terminations, check the timeouts."""
@@ -600,8 +621,8 @@ class OnboardNode:
             line_id=self.track_map.line.id,
             position_m=self.track_map.normalise(position_m),
             speed_mps=speed_mps,
-            acceleration_mps2=self.plant.acceleration_mps2,
-            traction_force_n=self.plant.applied_force_n,
+            acceleration_mps2=self.sensor_fusion.acceleration_mps2,
+            traction_force_n=self.plant.drive.applied_force_n,
             ato_state=self.stack.ato_state,
             etcs_mode=self.stack.etcs.mode,
             sc_state=self.sc_state,
@@ -665,3 +686,30 @@ class OnboardNode:
             closable.close()
         if self._datalog is not None:
             self._datalog.close()
+
+
+def _simulated_vehicle(
+    settings: OnboardSettings, track_map: TrackMap, *, start_s: float
+) -> SimulatedVehicle:
+    """The dynamics at the settings' fidelity, with the sensors that watch them (their
+    randomness from the sensors' seed, one stream each)."""
+    sensors, position_m = settings.sensors, settings.start_position_m
+    dynamics = (
+        BogiePlant(URV_BOGIE_PARAMETERS, position_m=position_m, initial_soc=settings.initial_soc)
+        if settings.fidelity == "bogie"
+        else PointMassModel(URV_PARAMETERS, position_m=position_m)
+    )
+    return SimulatedVehicle(
+        track_map, dynamics,
+        interface_modules=InterfaceModules(
+            track_map, rng=np.random.default_rng(sensors.seed), noise=sensors.noise,
+            faults=sensors.faults,
+        ),
+        wheel_sensors=WheelSensors(rng=np.random.default_rng([sensors.seed, 2]),
+                                   diameter_error=sensors.wheel_diameter_error),
+        balise_reader=BaliseReader(
+            track_map, rng=np.random.default_rng([sensors.seed, 3]),
+            faults=BaliseReaderFaults(missed_group_ids=sensors.missed_balise_groups),
+        ),
+        start_s=start_s,
+    )  # fmt: skip

@@ -3,7 +3,8 @@
 The node (``onboard.node``) moves messages over Zenoh and runs the tasks; this class holds what
 they act on, so that the whole chain can be driven in lockstep without a network:
 
-- the emulated ETCS onboard supervises the plant's position and speed (every 100 ms);
+- the emulated ETCS onboard supervises the train on its own odometry: the axle-end sensors'
+  readings and the balise groups its BTM reads (every 100 ms);
 - the ATO-OB controller decides, from ETCS, the journey, the track data and the session, whether
   ATO is available, ready or engaged, and what the ADF is asked to do (every 200 ms);
 - the ADF (:class:`onboard.adf.function.DrivingFunction`) turns that into a force demand, under
@@ -14,11 +15,16 @@ ATO is not engaged (the ATO-OB's CO/NA/AV/RE), not only from NA, since on an unm
 remote driver is the only way to move it before ATO is available (the seed 000 field sequence
 starts in SR under RD). A journey profile is accepted only if its ODP can be planned from where
 the vehicle stands: an infeasible leg is a rejection with its reason.
+
+The stack never reads the plant (ARCHITECTURE.md, the truth boundary): the ATO-OB and the ADF
+see the train through the sensor-fusion estimate (:class:`Locator`), ETCS through its odometry,
+the ADF's bumpless transfer through the drives' feedback (:class:`DriveReading`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -28,15 +34,16 @@ from onboard.adf.odp import InfeasibleLegError
 from onboard.adf.supervisor import ModeRequest
 from onboard.ato_ob import AtoObController, AtoObInputs, EtcsStatus, RequestRefusedError
 from onboard.ato_ob.vital_link import VitalLink
-from onboard.etcs import EtcsOnboard, MaSection, MovementAuthority
+from onboard.etcs import URV_ODOMETER, EtcsOnboard, MaSection, MovementAuthority
 from onboard.plant.point_mass import PointMassParameters
+from onboard.plant.readings import BaliseDetection, WheelReading
 from onboard.track_database_manager import TrackDatabaseManager
 from onboard.vc.installation import VcInstallation
 from onboard.vc.ipc import VcEventKind
 from protocol import messages as m
 from trackdb import TemporarySpeedRestriction, TrackMap
 
-__all__ = ["OnboardStack", "Plant", "StackEvent", "authority_from_extent"]
+__all__ = ["Locator", "OnboardStack", "StackEvent", "authority_from_extent"]
 
 STANDSTILL_MPS = 0.01
 MIN_AUTHORITY_M = 5.0
@@ -70,11 +77,12 @@ def authority_from_extent(extent: m.MovementAuthorityExtent) -> MovementAuthorit
     )  # fmt: skip
 
 
-class Plant(Protocol):
-    """What the onboard needs of a plant; both fidelities provide it."""
+class Locator(Protocol):
+    """Where the train is and how fast it goes, as the onboard's localisation estimates it."""
 
     @property
-    def position_m(self) -> float: ...
+    def position_m(self) -> float:
+        """The estimated front end [m], unwrapped on a ring."""
 
     @property
     def speed_mps(self) -> float: ...
@@ -83,27 +91,15 @@ class Plant(Protocol):
     def acceleration_mps2(self) -> float: ...
 
     @property
-    def applied_force_n(self) -> float: ...
+    def localisation_valid(self) -> bool:
+        """Good enough to drive on (the ATO-OB's "localised" condition)."""
 
-    @property
-    def traction_energy_j(self) -> float: ...
-
-    def force_limits_n(self, speed_mps: float) -> tuple[float, float]: ...
-
-    def step(
-        self, dt_s: float, force_demand_n: float, *, gradient_permille: float = ...,
-        curve_radius_m: float = ..., emergency_brake: float = ...,
-    ) -> None: ...  # fmt: skip
+    def fix(self, chainage_m: float, detected_s: float) -> None:
+        """A balise group located at ``detected_s`` [s], at its chainage [m]."""
 
 
-class Locator(Protocol):
-    """Where the train is and how fast it goes, as the onboard's localisation estimates it."""
-
-    @property
-    def position_m(self) -> float: ...
-
-    @property
-    def speed_mps(self) -> float: ...
+ForceLimits = Callable[[float], tuple[float, float]]
+"""The vehicle's (min, max) force [N] at a speed [m/s]: its traction and braking data."""
 
 
 @dataclass
@@ -111,15 +107,17 @@ class OnboardStack:
     """ETCS + ATO-OB controller + ADF for one vehicle."""
 
     track_map: TrackMap
-    plant: Plant
+    locator: Locator
+    """The sensor-fusion localisation the ATO-OB and the ADF use."""
     model: PointMassParameters
+    force_limits_n: ForceLimits
+    start_position_m: float = 0.0
+    """Where the vehicle was powered up [m] (its stored position): ETCS's odometry starts there,
+    with the national location accuracy until the first balise group."""
     start_s: float = 0.0
     energy_plans: bool = True
     vital: VcInstallation | None = None
     """The Vital Control fitted to the vehicle, if any (its tasks run on the node)."""
-    locator: Locator | None = None
-    """The localisation the ATO-OB and the ADF use (the sensor-fusion estimate); the plant's
-    truth when none is given. ETCS keeps its own odometry."""
     session_alive: bool = False
     internal_fault: bool = False
     """An ATO-OB internal fault (injected by scenario runs): the controller goes to FA."""
@@ -127,8 +125,8 @@ class OnboardStack:
 
     def __post_init__(self) -> None:
         self.track_database = TrackDatabaseManager(self.track_map)
-        self.etcs = EtcsOnboard(self.track_map, position_m=self.plant.position_m,
-                                start_s=self.start_s)  # fmt: skip
+        self.etcs = EtcsOnboard(self.track_map, position_m=self.start_position_m,
+                                start_s=self.start_s, odometer=URV_ODOMETER)  # fmt: skip
         self.etcs.start_of_mission(self.start_s)
         self.controller = AtoObController(start_s=self.start_s)
         self.driving = DrivingFunction(self.track_map, self.model)
@@ -153,13 +151,13 @@ class OnboardStack:
 
     @property
     def position_m(self) -> float:
-        """The estimated front end, unwrapped like the plant's position [m]."""
-        return self.plant.position_m if self.locator is None else self.locator.position_m
+        """The estimated front end, unwrapped on a ring [m]."""
+        return self.locator.position_m
 
     @property
     def speed_mps(self) -> float:
         """The estimated speed [m/s]."""
-        return self.plant.speed_mps if self.locator is None else self.locator.speed_mps
+        return self.locator.speed_mps
 
     @property
     def ato_state(self) -> m.AtoState:
@@ -417,11 +415,26 @@ class OnboardStack:
 
     # -- tasks -----------------------------------------------------------------------------------
 
-    def step_etcs(self, now_s: float) -> None:
+    def step_etcs(
+        self,
+        now_s: float,
+        wheels: Sequence[WheelReading] = (),
+        balises: Sequence[BaliseDetection] = (),
+    ) -> None:
+        """One ETCS cycle on the axle-end sensors' readings and the balise groups the BTM read
+        since the last cycle; each group read is also a fix for the sensor fusion and a
+        telegram header for the VC."""
         if self.vital is not None:
             self._follow_relay(now_s)
-        self.etcs.step(now_s, self.plant.position_m, max(self.plant.speed_mps, 0.0),
-                       acceleration_mps2=self.plant.acceleration_mps2)  # fmt: skip
+        output = self.etcs.step_on_sensors(now_s, wheels, balises)
+        for event in output.linking_events:
+            what = "reaction applied" if event.applied else "reported only"
+            self._note(m.EventSeverity.WARNING, f"etcs.linking.{event.fault.value}",
+                       f"balise group {event.balise_group_id} expected at "
+                       f"{event.expected_location_m:.1f} m ± {event.location_accuracy_m:.1f} m: "
+                       f"{event.reaction.value}, {what}")  # fmt: skip
+        for detection in balises:
+            self.locator.fix(detection.group.position_m, detection.time_s)
         reading = self.etcs.last_balise_reading
         if reading is not self._balise_reading:
             self._balise_reading = reading
@@ -443,7 +456,7 @@ class OnboardStack:
             journey_profile_valid=self.journey_plan is not None,
             journey_profile_accepted=self.journey_plan is not None,
             track_data_version_matches=self.track_database.versions_match,
-            localisation_valid=True,
+            localisation_valid=self.locator.localisation_valid,
             end_of_journey_reached=stopped_at is not None and stopped_at.end_of_journey,
             standstill=speed < STANDSTILL_MPS,
             at_stopping_point=stopped_at is not None,
@@ -456,13 +469,16 @@ class OnboardStack:
             internal_fault=self.internal_fault,
         )  # fmt: skip
 
-    def step_control(self, now_s: float) -> float:
-        """The ATO-OB controller and the ADF: the force demand [N] until the next step."""
+    def step_control(self, now_s: float, applied_force_n: float = 0.0) -> float:
+        """The ATO-OB controller and the ADF: the force demand [N] until the next step.
+
+        ``applied_force_n`` is the drives' and brakes' feedback [N] (the ADF's bumpless
+        transfer starts from it)."""
         out = self.controller.step(now_s, self._inputs(now_s))
         if out.automatic_driving_requested != self._ad_requested:
             self._ad_requested = out.automatic_driving_requested
             self.etcs.request_automatic_driving(self._ad_requested, now_s)
-        plant, driving = self.plant, self.driving
+        driving = self.driving
         mode, traction = out.mode_request, out.traction_allowed
         if self.remote_selected and not self.engaged and out.state is not m.AtoState.FAILURE:
             mode, traction = ModeRequest.REMOTE, True
@@ -500,9 +516,9 @@ class OnboardStack:
         self._vc_braking = vc_braking
         self.force_demand_n = driving.step(
             now_s, position_m=self.position_m, speed_mps=self.speed_mps,
-            applied_force_n=plant.applied_force_n,
+            applied_force_n=applied_force_n,
             gradient_permille=self.track_map.gradient_permille(self.position_m),
-            force_limits_n=plant.force_limits_n(plant.speed_mps),
+            force_limits_n=self.force_limits_n(self.speed_mps),
             traction_allowed=traction and not (etcs is not None and etcs.traction_cut),
             service_brake=out.full_service_brake or etcs_brake or vc_braking,
         )  # fmt: skip

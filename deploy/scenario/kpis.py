@@ -19,7 +19,14 @@ import numpy as np
 from deploy.scenario.schema import Expectation
 from protocol.units import MPS_PER_KMH
 
-__all__ = ["JERK_MIN_SPEED_MPS", "RunCounters", "check_expectations", "compute_kpis", "kpi_value"]
+__all__ = [
+    "JERK_MIN_SPEED_MPS",
+    "RunCounters",
+    "check_expectations",
+    "compute_kpis",
+    "kpi_value",
+    "odometry_interval_kpi",
+]
 
 J_PER_KWH = 3.6e6
 JERK_MIN_SPEED_MPS = 0.2
@@ -117,8 +124,30 @@ def compute_kpis(
         "nmpc_ms": _percentiles_ms(counters.nmpc_solve_times_s),
         "vc_interventions": list(vc_interventions),
         "max_wheel_slip_mps": _finite_max(columns.get("wheel_slip_mps")),
+        "etcs_estimate_error_m": _error_kpi(columns, "etcs_position_m"),
         **_energy_kpis(columns),
     }
+
+
+def _error_kpi(columns: Mapping[str, np.ndarray], estimate: str) -> dict[str, float] | None:
+    """{rms, max} of |estimate − true position| [m]; None without the column."""
+    if estimate not in columns:
+        return None
+    errors = np.abs(columns[estimate] - columns["position_m"])
+    errors = errors[np.isfinite(errors)]
+    return {"rms": _rms(errors) or 0.0, "max": float(errors.max()) if errors.size else 0.0}
+
+
+def odometry_interval_kpi(
+    columns: Mapping[str, np.ndarray], at_stops_m: Sequence[float], *, outside_m: float
+) -> dict[str, Any] | None:
+    """ETCS's confidence interval [m]: its max over the run, at each stop, and how far the true
+    front end ever was outside it (``outside_max_m``, 0 when it never was)."""
+    values = columns.get("odometry_interval_m")
+    if values is None:
+        return None
+    return {"max": _finite_max(values), "at_stops": [float(v) for v in at_stops_m],
+            "outside_max_m": max(outside_m, 0.0)}  # fmt: skip
 
 
 def _finite_max(values: np.ndarray | None) -> float | None:

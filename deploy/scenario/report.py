@@ -76,6 +76,24 @@ def _position_figure(c: Mapping[str, np.ndarray]) -> Figure:
     return figure
 
 
+def _odometry_figure(c: Mapping[str, np.ndarray]) -> Figure:
+    """ETCS's confidence interval around its estimate, and both estimates' errors (truth)."""
+    figure, axes = plt.subplots(1, 1, figsize=(10, 3.2))
+    t, truth = c["time_s"], c["position_m"]
+    interval = c["odometry_interval_m"]
+    axes.fill_between(t, -interval, interval, color="tab:blue", alpha=0.15,
+                      label="ETCS confidence interval [m]")  # fmt: skip
+    axes.plot(t, c["etcs_position_m"] - truth, color="tab:blue", lw=1,
+              label="ETCS estimate − truth [m]")  # fmt: skip
+    axes.plot(t, c["estimated_position_m"] - truth, color="tab:orange", lw=1,
+              label="fused estimate − truth [m]")  # fmt: skip
+    axes.set_ylabel("m")
+    axes.set_xlabel("simulated time [s]")
+    axes.legend(loc="upper left", fontsize=8)
+    axes.set_title("Odometry: ETCS's interval, and where the estimates were")
+    return figure
+
+
 def _timeline_figure(c: Mapping[str, np.ndarray]) -> Figure:
     figure, axes = plt.subplots(1, 1, figsize=(10, 2.6))
     t = c["time_s"]
@@ -110,7 +128,7 @@ def render_report(kpis: Mapping[str, Any], columns: Mapping[str, np.ndarray]) ->
     figures: list[str] = []
     if columns["time_s"].size:
         figures = [_png(_speed_figure(columns)), _png(_position_figure(columns)),
-                   _png(_timeline_figure(columns))]  # fmt: skip
+                   _png(_odometry_figure(columns)), _png(_timeline_figure(columns))]  # fmt: skip
     expectations = "".join(
         f'<tr class="{"ok" if e["ok"] else "fail"}"><td>{"✔" if e["ok"] else "✘"}</td>'
         f"<td>{html.escape(e['name'])}</td><td>{html.escape(e['detail'])}</td></tr>"
@@ -118,7 +136,8 @@ def render_report(kpis: Mapping[str, Any], columns: Mapping[str, np.ndarray]) ->
     )
     stops = "".join(
         f"<tr><td>{html.escape(s['name'])}</td><td>{s['planned_arrival_s']:.1f}</td>"
-        f"<td>{s['arrival_error_s']:+.2f}</td><td>{s['stop_error_m']:+.3f}</td></tr>"
+        f"<td>{s['arrival_error_s']:+.2f}</td><td>{s['stop_error_m']:+.3f}</td>"
+        f"<td>{s.get('odometry_interval_m', float('nan')):.1f}</td></tr>"
         for s in kpis.get("stops", [])
     )
     scalars = [(k, json.dumps(v)) for k, v in kpis.items()
@@ -141,7 +160,7 @@ img {{ max-width: 100%; margin: 1em 0; }}
 {kpis.get("wall_time_s", 0):.1f} s ({kpis.get("real_time_factor", 0):.1f}× real time).</p>
 <h2>Expectations</h2><table>{expectations}</table>
 <h2>Stops</h2><table><tr><th>stop</th><th>planned arrival [s]</th><th>arrival error [s]</th>
-<th>stop error [m]</th></tr>{stops}</table>
+<th>stop error [m]</th><th>ETCS interval [m]</th></tr>{stops}</table>
 <h2>Plots</h2>{images}
 <h2>KPIs</h2>{_table(scalars)}
 <h2>Vital Control interventions</h2><pre>{interventions}</pre>

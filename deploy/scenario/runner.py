@@ -41,7 +41,12 @@ from deploy.bench.vc_runner import run_scenario as run_vc_scenario
 from deploy.link_proxy import LinkProxy
 from deploy.ports import loopback_endpoint
 from deploy.scenario.conditions import State
-from deploy.scenario.kpis import RunCounters, check_expectations, compute_kpis
+from deploy.scenario.kpis import (
+    RunCounters,
+    check_expectations,
+    compute_kpis,
+    odometry_interval_kpi,
+)
 from deploy.scenario.report import render_report
 from deploy.scenario.schema import (
     Action,
@@ -71,7 +76,6 @@ from onboard.sfa.chain import SensorSettings
 from onboard.sfa.link import LinkFaults
 from onboard.vc import hardware as vc_hardware
 from onboard.vc.installation import VcFaults
-from onboard.vcu.vehicle import BogieVehicle
 from protocol import ZenohSettings, open_session
 from protocol import messages as m
 from trackdb import TrackMap, load_seed_line
@@ -91,6 +95,8 @@ LINK_WAIT_S = 15.0
 """How long, in wall time, the sessions may take to notice a cut or a restored link [s]."""
 OBSTACLE_MARGIN_M = 20.0
 """The RBC ends the MA this far before a reported obstacle [m]."""
+VC_DATALOG = "vc-datalog.jsonl"
+"""The VC's datalog in a run's report directory (``ato vc replay`` reads it)."""
 WHOLE_STACK_FAULTS = (AtoFailure, FrictionDrop, Obstacle, OdometerFailure, RelayFault,
                       SensorDropout, ShortenedAuthority, TachometerFault,
                       TemporarySpeedRestriction, TracksideRestart, UdpLinkFault,
@@ -308,6 +314,8 @@ class _Stack:
                                       vehicle_id=spec.vehicle.id)  # fmt: skip
                 stack.callback(link.close)
             vehicle = spec.vehicle
+            if options.report_dir is not None and vehicle.vc_datalog:
+                options.report_dir.mkdir(parents=True, exist_ok=True)
             clock = SimClock() if options.fast else RealTimeClock(options.speed)
             node = OnboardNode(
                 OnboardSettings(
@@ -315,6 +323,10 @@ class _Stack:
                     start_position_m=vehicle.start_position_m,
                     energy_plans=vehicle.energy_plans, vc_replicas=vehicle.vc_replicas,
                     vc_faults=_vc_faults(spec.faults), initial_soc=vehicle.initial_soc,
+                    vc_datalog=(
+                        (options.report_dir or scratch) / VC_DATALOG
+                        if vehicle.vc_datalog else None
+                    ),
                     sensors=_sensor_settings(spec.faults, seed),
                 ),
                 session=onboard_zenoh, clock=clock, track_map=TrackMap(load_seed_line(spec.line)),
@@ -475,8 +487,7 @@ class _Stack:
         # The operator at the console sees the vehicle only over the link, and answers through it.
         self.operator_present = present and link_lost is None
         self.node.stack.internal_fault = internal_fault
-        if isinstance(self.node.plant, BogieVehicle):
-            self.node.plant.adhesion_factor = adhesion
+        self.node.plant.adhesion_factor = adhesion
 
     def _zenoh_link(self, lost: ZenohLinkLoss | None) -> None:
         """Cut the onboard ↔ trackside link when a window opens, restore it when none is open;
@@ -735,6 +746,7 @@ class _Stack:
                 "name": stop.name, "planned_arrival_s": stop.planned_arrival_s,
                 "arrival_error_s": stop.arrival_s - stop.planned_arrival_s,
                 "stop_error_m": stop.stop_error_m,
+                "odometry_interval_m": stop.odometry_interval_m,
             }
             for stop in recorder.stops
         ]  # fmt: skip
@@ -742,6 +754,10 @@ class _Stack:
         kpis = compute_kpis(
             columns, stops=stops, counters=counters, position_errors_m=errors,
             vc_interventions=recorder.vc_interventions,
+        )  # fmt: skip
+        kpis["odometry_interval_m"] = odometry_interval_kpi(
+            columns, [stop.odometry_interval_m for stop in recorder.stops],
+            outside_m=recorder.maxima.outside_interval_m,
         )  # fmt: skip
         kpis.update(
             scenario=self.spec.name, seed=self.seed, sim_time_s=node.clock.now_s,

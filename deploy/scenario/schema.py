@@ -42,7 +42,11 @@ class VehicleSpec(_Model):
     fidelity: Literal["point_mass", "bogie"] = "point_mass"
     start_position_m: float = Field(default=0.0, ge=0.0, allow_inf_nan=False)
     initial_soc: float = Field(default=0.9, gt=0.0, le=1.0, description="Bogie only: battery SOC")
-    vc_replicas: Literal[1, 2] = 1
+    vc_replicas: Literal[1, 2] = 2
+    """Two VC boards in 2-out-of-2 with the voter and watchdog, as on the seeds' vehicle; 1 for a
+    single board (for comparisons)."""
+    vc_datalog: bool = True
+    """Record the VC's datalog (``vc-datalog.jsonl`` in the report directory, if any)."""
     energy_plans: bool = True
 
 

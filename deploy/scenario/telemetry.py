@@ -36,7 +36,7 @@ COLUMNS = (
     "time_s", "position_m", "speed_mps", "acceleration_mps2", "force_n", "force_demand_n",
     "mrsp_mps", "reference_speed_mps", "permitted_speed_mps", "estimated_position_m",
     "sc_state", "ato_state", "etcs_mode", "vc_eb", "soc", "range_extender_kw",
-    "traction_energy_j", "wheel_slip_mps",
+    "traction_energy_j", "wheel_slip_mps", "etcs_position_m", "odometry_interval_m",
 )  # fmt: skip
 """The telemetry's columns: floats but the three states (their names as strings)."""
 
@@ -49,6 +49,8 @@ class StopRecord:
     """Journey time of the stop [s]."""
     stop_error_m: float
     """True front position − stopping point, along the journey [m]."""
+    odometry_interval_m: float
+    """ETCS's confidence interval at the stop: the larger of over- and under-reading [m]."""
 
 
 @dataclass
@@ -60,6 +62,8 @@ class _Maxima:
     """Least distance from the true front end to the ETCS end of authority [m] (< 0: passed)."""
     obstacle_margin_m: float = math.inf
     """Least distance from the true front end to the obstacle [m] (< 0: reached)."""
+    outside_interval_m: float = 0.0
+    """Furthest the true front end was outside ETCS's confidence interval [m] (0: never)."""
 
 
 @dataclass
@@ -117,6 +121,10 @@ class TelemetryRecorder:
         if etcs is not None and etcs.end_of_authority_distance_m is not None:
             eoa_m = etcs.odometry.estimated_front_m + etcs.end_of_authority_distance_m
             maxima.eoa_margin_m = min(maxima.eoa_margin_m, eoa_m - plant.position_m)
+        interval = node.stack.etcs.odometry
+        outside_m = max(plant.position_m - interval.max_safe_front_m,
+                        interval.min_safe_front_m - plant.position_m)  # fmt: skip
+        maxima.outside_interval_m = max(maxima.outside_interval_m, outside_m)
         if self.obstacle_m is not None:
             maxima.obstacle_margin_m = min(maxima.obstacle_margin_m,
                                            self.obstacle_m - plant.position_m)  # fmt: skip
@@ -180,6 +188,7 @@ class TelemetryRecorder:
                 name=stop.timing_point_id, planned_arrival_s=stop.arrival_s,
                 arrival_s=driving.journey_time_s(now_ns / NS_PER_S),
                 stop_error_m=travelled - stop.distance_m,
+                odometry_interval_m=_interval_m(node),
             )
         )  # fmt: skip
 
@@ -212,6 +221,8 @@ class TelemetryRecorder:
             "range_extender_kw": extender_kw,
             "traction_energy_j": plant.traction_energy_j,
             "wheel_slip_mps": _wheel_slip_mps(plant),
+            "etcs_position_m": stack.etcs.odometry.estimated_front_m,
+            "odometry_interval_m": _interval_m(node),
         }
         for column in COLUMNS:
             self.rows[column].append(values[column])
@@ -232,12 +243,18 @@ class TelemetryRecorder:
 def _wheel_slip_mps(plant: object) -> float:
     """The larger of the two wheelsets' |ω·r − v| on the bogie model [m/s]; NaN on the point
     mass, whose wheels do not slip."""
-    truth = getattr(plant, "truth", None)
+    truth = getattr(getattr(plant, "dynamics", None), "truth", None)
     if not isinstance(truth, BogieTruth):
         return math.nan
     radius, speed = truth.wheel_radius_m, truth.speed_mps
     return max(abs(truth.wheel_speed_front_radps * radius - speed),
                abs(truth.wheel_speed_rear_radps * radius - speed))  # fmt: skip
+
+
+def _interval_m(node: OnboardNode) -> float:
+    """ETCS's confidence interval now: the larger of over- and under-reading [m]."""
+    interval = node.stack.etcs.odometry
+    return max(interval.over_reading_m, interval.under_reading_m)
 
 
 def _nan_if_none(value: float | None) -> float:

@@ -1,44 +1,50 @@
 """The sensor-fusion chain inside the onboard node: what the ATO-OB and the ADF see of the train.
 
-Every 10 ms tick of the node, right after the plant: the interface-modules emulator turns the
-plant's truth into INPUT datagrams, which go through the (fault-injectable) link to the
-listener; the listener's OUTPUT datagrams reach the OBCU's :class:`Localisation`, whose ACKs go
-back to the listener. Balise groups read by ETCS are given to the filter as fixes. The chain
-is the same as :func:`onboard.sfa.lockstep.run_lockstep`'s, minus the comparison with the truth,
-and is deterministic for a seed.
+Every 10 ms tick of the node, right after the plant: the interface-modules' INPUT datagrams of
+that tick (made by the sensor models of :mod:`onboard.plant`, which alone read the truth) go
+through the (fault-injectable) link to the listener; the listener's OUTPUT datagrams reach the
+OBCU's :class:`Localisation`, whose ACKs go back to the listener. Balise groups read by the BTM
+are given to the filter as fixes. The chain is the same as the SFA bench's lockstep run, minus
+the comparison with the truth, and is deterministic for a seed.
 
 :attr:`position_m` and :attr:`speed_mps` are what the controller uses: the fused estimate
-(``position_m`` unwrapped like the plant's), with speeds under :data:`ZERO_SPEED_MPS` read as a
-standstill, as an odometer's zero-speed detection does. Before the first estimate (the first
-tick) they are the GROUND_TRUTH the interface-modules start with.
+(``position_m`` unwrapped on a ring), with speeds under :data:`ZERO_SPEED_MPS` read as a
+standstill, as an odometer's zero-speed detection does. Before the first estimate they are the
+position the vehicle was started at (its stored position at power-up) and zero.
+:attr:`localisation_valid` is the filter's health as the ATO-OB's "localised" condition needs it
+(SUBSET-125: no localisation, no engagement).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from onboard.plant.interfaces import BogieTruth
-from onboard.plant.sensors import (
-    InterfaceModules,
-    SensorFaults,
-    SensorNoise,
-    TruthSample,
-    truth_from_bogie,
-)
+from onboard.plant.sensors import SensorFaults, SensorNoise
 from onboard.sfa.link import FaultyLink, LinkFaults
-from onboard.sfa.listener import ListenerConfig, ListenerCore
+from onboard.sfa.listener import Health, ListenerConfig, ListenerCore
 from onboard.sfa.localisation import Localisation, LocalisationEstimate
 from trackdb import TrackMap
 
-__all__ = ["BALISE_FIX_SIGMA_M", "ZERO_SPEED_MPS", "SensorFusionChain", "SensorSettings"]
+__all__ = [
+    "BALISE_FIX_SIGMA_M",
+    "LOCALISATION_MAX_SIGMA_M",
+    "ZERO_SPEED_MPS",
+    "SensorFusionChain",
+    "SensorSettings",
+]
 
 ZERO_SPEED_MPS = 0.05
 """Fused speeds below this read as standstill [m/s] (0.18 km/h)."""
 BALISE_FIX_SIGMA_M = 1.0
-"""σ of a balise group's location as a fix [m] (the group's location accuracy is ±5 m at worst;
-the reading itself is far better)."""
+"""σ of a balise group's location as a fix [m]: the BTM's location error (σ ≤ 0.5 m, see
+docs/sensors.md) and the group's surveyed location together."""
+LOCALISATION_MAX_SIGMA_M = 5.0
+"""⚠ Above this σ [m] the fused position is not good enough to drive on: localisation is not
+valid (a stop must be made within ±0.5 m; 5 m is where the filter has clearly lost its aiding
+sensors, well before the listener's own "degraded" threshold of 10 m)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -50,44 +56,46 @@ class SensorSettings:
     faults: SensorFaults = field(default_factory=SensorFaults)
     link: LinkFaults = field(default_factory=LinkFaults)
     listener: ListenerConfig = field(default_factory=ListenerConfig)
+    wheel_diameter_error: float | None = None
+    """Calibrated over real wheel diameter minus 1 (+0.02 reads 2 % long); drawn from the seed
+    (σ 0.2 %) when None. The axle-end sensors' (and so ETCS's and the VC's) scale error."""
+    missed_balise_groups: frozenset[int] = frozenset()
+    """Balise groups (NID_BG) the BTM fails to read (an injected fault)."""
 
 
 class SensorFusionChain:
-    """Interface-modules → link → listener → OBCU localisation, stepped by the node."""
+    """Link → listener → OBCU localisation, stepped by the node with the sensors' datagrams.
 
-    def __init__(self, track_map: TrackMap, settings: SensorSettings = SensorSettings()) -> None:
+    Parameters
+    ----------
+    track_map : TrackMap
+        The onboard's track data.
+    settings : SensorSettings
+        The link's faults, the listener's configuration and the seed.
+    start_position_m : float
+        Where the vehicle was started [m] (its stored position): the first output is unwrapped
+        near it on a ring, and it is the position until the first estimate.
+    """
+
+    def __init__(
+        self,
+        track_map: TrackMap,
+        settings: SensorSettings = SensorSettings(),
+        *,
+        start_position_m: float = 0.0,
+    ) -> None:
         self.track_map = track_map
         self.settings = settings
-        rng = np.random.default_rng(settings.seed)
-        self.modules = InterfaceModules(track_map, rng=rng, noise=settings.noise,
-                                        faults=settings.faults)  # fmt: skip
-        self.link = FaultyLink(settings.link, rng)
+        self.link = FaultyLink(settings.link, np.random.default_rng([settings.seed, 1]))
         self.listener = ListenerCore(track_map, settings.listener)
         self.localisation = Localisation(track_map, listener=self.listener)
-        self._started = False
-        self._start_position_m = 0.0
+        self.localisation.expect_near(start_position_m)
+        self._start_position_m = start_position_m
 
-    @staticmethod
-    def truth(now_s: float, plant: object) -> TruthSample:
-        """The plant's truth at ``now_s``, with the wheel's speed when the bogie model runs."""
-        bogie = getattr(plant, "truth", None)
-        if isinstance(bogie, BogieTruth):
-            return truth_from_bogie(bogie)
-        return TruthSample(
-            time_s=now_s, position_m=plant.position_m, speed_mps=plant.speed_mps,  # type: ignore[attr-defined]
-            acceleration_mps2=plant.acceleration_mps2,  # type: ignore[attr-defined]
-        )  # fmt: skip
-
-    def step(self, now_s: float, truth: TruthSample) -> None:
-        """One 10 ms tick: send, deliver, fuse, acknowledge."""
+    def step(self, now_s: float, datagrams: Iterable[bytes]) -> None:
+        """One 10 ms tick: send the sensors' datagrams, deliver, fuse, acknowledge."""
         link, listener, localisation = self.link, self.listener, self.localisation
-        if not self._started:
-            self._started = True
-            self._start_position_m = truth.position_m
-            self.localisation.expect_near(truth.position_m)
-            for datagram in self.modules.start(truth):
-                link.send(datagram, now_s)
-        for datagram in self.modules.step(truth):
+        for datagram in datagrams:
             link.send(datagram, now_s)
         for datagram, arrival_s in link.deliver(now_s):
             for output in listener.feed(datagram, arrival_s):
@@ -97,9 +105,14 @@ class SensorFusionChain:
         for ack in localisation.step(now_s):
             listener.on_ack(ack, now_s)
 
-    def fix(self, chainage_m: float, now_s: float) -> None:
-        """A balise group read by ETCS at ``now_s``, at its chainage on the line."""
-        self.localisation.fix(self.track_map.normalise(chainage_m), BALISE_FIX_SIGMA_M, now_s)
+    def fix(self, chainage_m: float, detected_s: float) -> None:
+        """A balise group located by the BTM at ``detected_s`` [s], at its chainage on the line
+        [m]. The fix is taken at the filter's epoch, moved by the estimated speed over the time
+        between (the filter may run a little behind or ahead of the detection)."""
+        flt = self.listener.filter
+        epoch_s = flt.epoch_s if flt.initialised else detected_s
+        fix_m = self.track_map.normalise(chainage_m + (epoch_s - detected_s) * self.speed_mps)
+        self.localisation.fix(fix_m, BALISE_FIX_SIGMA_M, epoch_s)
 
     @property
     def estimate(self) -> LocalisationEstimate | None:
@@ -118,6 +131,25 @@ class SensorFusionChain:
         return estimate.speed_mps
 
     @property
+    def acceleration_mps2(self) -> float:
+        """The filter's acceleration: the IMU's input less its estimated bias [m/s²]."""
+        flt = self.listener.filter
+        if not flt.initialised:
+            return 0.0
+        return flt.last_input_mps2 - flt.bias_mps2
+
+    @property
     def sigma_m(self) -> float | None:
         estimate = self.localisation.estimate
         return None if estimate is None else estimate.sigma_m
+
+    @property
+    def localisation_valid(self) -> bool:
+        """An estimate, not lost (the IMU or the odometer alive, outputs fresh), and σ within
+        :data:`LOCALISATION_MAX_SIGMA_M`."""
+        estimate = self.localisation.estimate
+        return (
+            estimate is not None
+            and estimate.health is not Health.LOST
+            and estimate.sigma_m <= LOCALISATION_MAX_SIGMA_M
+        )

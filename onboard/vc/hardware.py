@@ -276,8 +276,16 @@ class TachometerBoard:
     def _active(self, mode: TachometerFaultMode, now_s: float) -> bool:
         return any(f.mode is mode and f.start_s <= now_s < f.end_s for f in self.faults)
 
-    def poll(self, now_s: float, distance_m: float) -> TachometerFrame | None:
-        """The frame due at ``now_s`` (the train having run ``distance_m``), if any is sent."""
+    def poll(
+        self, now_s: float, distance_m: float, distance_b_m: float | None = None
+    ) -> TachometerFrame | None:
+        """The frame due at ``now_s``, if any is sent: channel A's axle having run
+        ``distance_m`` [m] and channel B's ``distance_b_m`` [m] (the same axle's by default).
+
+        On the vehicle the two channels sit on the two axles, so a slipping or sliding axle
+        makes them disagree, as the VC's odometry supervision is meant to see."""
+        if distance_b_m is None:
+            distance_b_m = distance_m
         if now_s + TIME_TOLERANCE_S < self.start_s + self._sent * self.period_s:
             return None
         self._sent += 1
@@ -287,7 +295,7 @@ class TachometerBoard:
             self._offset_b += self._random.choice((-1, 1)) * self._random.randint(low, high)
         # Channel B's axle is half a pulse out of phase with channel A's.
         pulses_a = math.floor(distance_m / self.metres_per_pulse)
-        pulses_b = math.floor(distance_m / self.metres_per_pulse + 0.5) + self._offset_b
+        pulses_b = math.floor(distance_b_m / self.metres_per_pulse + 0.5) + self._offset_b
         frame = TachometerFrame(self._number, pulses_a, pulses_b)
         if self._active(TachometerFaultMode.FROZEN, now_s) and self._last is not None:
             return self._last

@@ -4,7 +4,8 @@ The VC library (:class:`~onboard.vc.module.VitalControl`, :class:`~onboard.vc.re
 TwoOutOfTwo`) sees the world through ports; on a vehicle those ports are wired to:
 
 - the **odometry board**: a :class:`~onboard.vc.hardware.TachometerBoard` counting the
-  wheel's pulses over the distance the plant has run (the VC's own speed and position; with
+  pulses of the axle-end sensors, channel A on the front axle and channel B on the rear one
+  (wheel rotation: slip and slide show; the VC's own speed and position; with
   ``VcConfig.fused_speed_supervision`` Task B also takes the fused speed, every 10 ms, through
   :meth:`VcInstallation.fused_speed`);
 - the **BTM**: the header of each balise telegram the ETCS reads, forwarded to Task B;
@@ -74,8 +75,9 @@ class VcInstallation:
 
     Parameters
     ----------
-    odometer_m
-        The distance the wheels have run [m], read at each I/O cycle (from the plant).
+    wheel_travel_m
+        The (front, rear) axles' travel [m] as the axle-end sensors read it (wheel rotation
+        times the calibrated radius), read at each I/O cycle.
     config
         The VC's parameters (both replicas use the same).
     replicas
@@ -88,7 +90,7 @@ class VcInstallation:
 
     def __init__(
         self,
-        odometer_m: Callable[[], float],
+        wheel_travel_m: Callable[[], tuple[float, float]],
         *,
         config: VcConfig | None = None,
         replicas: int = 1,
@@ -101,8 +103,8 @@ class VcInstallation:
         self.config = config or VcConfig()
         self.faults = faults or VcFaults()
         self.start_s = start_s
-        self._odometer_m = odometer_m
-        self._odometer_start_m = odometer_m()
+        self._wheel_travel_m = wheel_travel_m
+        self._travel_start_m = wheel_travel_m()
         self.boards = tuple(self._board(index, start_s) for index in range(replicas))
         self.pair: TwoOutOfTwo | None = None
         if replicas == 2:
@@ -162,9 +164,10 @@ class VcInstallation:
 
     def _io(self, release_ns: int) -> None:
         now_s = release_ns / NS_PER_S
-        distance_m = self._odometer_m() - self._odometer_start_m
+        front_m, rear_m = self._wheel_travel_m()
+        start_front_m, start_rear_m = self._travel_start_m
         for board in self.boards:
-            frame = board.tachometer.poll(now_s, distance_m)
+            frame = board.tachometer.poll(now_s, front_m - start_front_m, rear_m - start_rear_m)
             if frame is not None:
                 board.hardware.tachometer_frames.put(Delivery(frame, now_s))
             for header in self._balises:

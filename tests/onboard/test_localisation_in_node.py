@@ -1,11 +1,16 @@
-"""The node's closed loop on the fused localisation, and on the truth when asked."""
+"""The node's closed loop on the fused localisation, and the localisation's health."""
 
 from __future__ import annotations
 
+import math
+
 import zenoh
 
+from onboard.ato_ob import Condition
 from onboard.node import OnboardNode, OnboardSettings
+from onboard.plant.sensors import SensorFaults, TimeWindow
 from onboard.runtime import SimClock
+from onboard.sfa.chain import SensorSettings
 from protocol import messages as m
 from tests.conftest import wait_for
 from tests.operator import LockstepOperator
@@ -18,6 +23,10 @@ def _drive(zenoh_pair: tuple[zenoh.Session, zenoh.Session], **settings: object) 
     trackside, onboard = zenoh_pair
     node = OnboardNode(OnboardSettings(vehicle_id="URV1", **settings),  # type: ignore[arg-type]
                        session=onboard, clock=SimClock(), track_map=RING)  # fmt: skip
+    # No trackside service here to answer the track-data query: the versions are taken as checked.
+    node.track_database.record_trackside_version(
+        m.LineVersionReply(line_id=RING.line.id, version=RING.version)
+    )
     hands = LockstepOperator(trackside, node)
     assert wait_for(lambda: _reachable(hands))
     hands.run(3.0)
@@ -38,7 +47,7 @@ def test_the_controller_sees_the_fused_estimate_not_the_truth(
 ) -> None:
     node = _drive(zenoh_pair)
     try:
-        assert node.sensor_fusion is not None and node.sensor_fusion.estimate is not None
+        assert node.sensor_fusion.estimate is not None
         stack, plant = node.stack, node.plant
         error_m = stack.position_m - plant.position_m
         assert error_m != 0.0 and abs(error_m) < 1.0
@@ -50,12 +59,28 @@ def test_the_controller_sees_the_fused_estimate_not_the_truth(
         node.close()
 
 
-def test_on_the_truth_the_node_runs_without_sensor_fusion(
+def test_without_the_imu_and_the_odometer_the_train_is_not_localised(
     zenoh_pair: tuple[zenoh.Session, zenoh.Session],
 ) -> None:
-    node = _drive(zenoh_pair, localisation="truth")
+    """The filter's health is the ATO-OB's "localised" condition: with both of its dead-reckoning
+    sensors gone the estimate is lost, and ATO is not available for want of localisation."""
+    lost = (TimeWindow(20.0, math.inf),)
+    sensors = SensorSettings(faults=SensorFaults(imu_outages=lost, odometer_outages=lost))
+    node = _drive(zenoh_pair, sensors=sensors)
     try:
-        assert node.sensor_fusion is None and "sfa" not in node.executive.tasks
-        assert node.stack.position_m == node.plant.position_m > 100.0
+        assert not node.sensor_fusion.localisation_valid
+        reasons = node.stack.controller.output.unavailable_reasons
+        assert Condition.LOCALISED in reasons
+    finally:
+        node.close()
+
+
+def test_with_every_sensor_the_train_is_localised(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    node = _drive(zenoh_pair)
+    try:
+        assert node.sensor_fusion.localisation_valid
+        assert Condition.LOCALISED not in node.stack.controller.output.unavailable_reasons
     finally:
         node.close()

@@ -127,7 +127,7 @@ def test_command_for_another_vehicle_is_refused(node: OnboardNode) -> None:
 def test_bogie_fidelity_drives_through_the_vcu(
     zenoh_pair: tuple[zenoh.Session, zenoh.Session],
 ) -> None:
-    from onboard.vcu.vehicle import BogieVehicle
+    from onboard.plant.vehicle import BogiePlant
 
     trackside, onboard = zenoh_pair
     node = OnboardNode(
@@ -135,7 +135,7 @@ def test_bogie_fidelity_drives_through_the_vcu(
         track_map=TrackMap(load_seed_line("bologna-ring")),
     )  # fmt: skip
     try:
-        assert isinstance(node.plant, BogieVehicle)
+        assert isinstance(node.plant.dynamics, BogiePlant) and node.vcu is not None
         assert wait_for(lambda: _ping(trackside))
         target = 30 / 3.6
         ack = request(
@@ -145,7 +145,7 @@ def test_bogie_fidelity_drives_through_the_vcu(
         assert ack.accepted
         LockstepOperator(trackside, node).run(60.0)
         assert node.plant.speed_mps == pytest.approx(target, abs=0.5)
-        truth = node.plant.truth
+        truth = node.plant.dynamics.truth
         wheel_speed = truth.wheel_speed_rear_radps * truth.wheel_radius_m
         assert wheel_speed == pytest.approx(truth.speed_mps, abs=0.1)  # rolling, no slip
     finally:

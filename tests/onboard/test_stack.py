@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import pytest
 
+from dataclasses import dataclass
+
 from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.stack import OnboardStack
 from protocol import messages as m
@@ -12,9 +14,24 @@ from trackdb import TrackMap, load_seed_line
 RING = TrackMap(load_seed_line("bologna-ring"))
 
 
+@dataclass
+class StandingLocator:
+    """A localisation that has the train standing where it was put, and takes fixes."""
+
+    position_m: float
+    speed_mps: float = 0.0
+    acceleration_mps2: float = 0.0
+    localisation_valid: bool = True
+
+    def fix(self, chainage_m: float, detected_s: float) -> None:
+        del detected_s
+        self.position_m = chainage_m
+
+
 def stack(line: TrackMap = RING, position_m: float = 300.0) -> OnboardStack:
-    plant = PointMassModel(URV_PARAMETERS, position_m=position_m)
-    result = OnboardStack(line, plant, URV_PARAMETERS, energy_plans=False)
+    limits = PointMassModel(URV_PARAMETERS).force_limits_n
+    result = OnboardStack(line, StandingLocator(position_m), URV_PARAMETERS, limits,
+                          start_position_m=position_m, energy_plans=False)  # fmt: skip
     result.track_database.record_trackside_version(
         m.LineVersionReply(line_id=line.line.id, version=line.version)
     )
@@ -74,7 +91,7 @@ def test_an_rbc_movement_authority_reaches_etcs() -> None:
         authority=m.MovementAuthorityExtent(start_m=1000.0, end_of_authority_m=6000.0),
     )  # fmt: skip
     assert onboard.receive_movement_authority(message, 0.1) == "new"
-    output = onboard.etcs.step(0.2, 1000.0, 0.0)
+    output = onboard.etcs.step_on_sensors(0.2, [])  # standing at its start
     assert output.end_of_authority_distance_m == pytest.approx(5000.0, abs=1.0)
     revoked = message.model_copy(update={"ma_id": 2, "authority": None,
                                           "change": m.MovementAuthorityChange.REVOKED})  # fmt: skip
