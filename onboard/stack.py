@@ -137,6 +137,7 @@ class OnboardStack:
         self.remote_target_mps: float | None = None
         self.force_demand_n = 0.0
         self._ad_requested = False
+        self._overrun_noted: str | None = None
         self.vital_links = [
             VitalLink(request, response, vigilance_timeout_s=self.vital.config.vigilance_timeout_s,
                       sequence_modulo=self.vital.config.sequence_modulo)
@@ -445,6 +446,13 @@ class OnboardStack:
         position, speed = self.position_m, self.speed_mps
         driving = self.driving
         stopped_at = driving.stopped_at(position, speed) if self._journey_started else None
+        if stopped_at is not None and stopped_at.timing_point_id != self._overrun_noted:
+            overrun_m = driving.overrun_m(stopped_at, position)
+            if overrun_m > 0.0:
+                self._overrun_noted = stopped_at.timing_point_id
+                self._note(m.EventSeverity.WARNING, "journey.stop_overrun",
+                           f"stopped {overrun_m:.1f} m past {stopped_at.timing_point_id}'s "
+                           "tolerance: the brakes gave less than asked")  # fmt: skip
         next_stop = driving.next_stop(position) if self._journey_started else None
         if not self._journey_started and self.journey_plan is not None:
             next_stop = self.journey_plan.stops[0]

@@ -44,7 +44,8 @@ __all__ = [
 
 FAULT_SCENARIOS = ("ma-shortened", "obstacle", "vigilance-absent", "ato-failure",
                    "tsr", "trackside-restart", "zenoh-link-loss", "gps-outage",
-                   "odometer-failure", "udp-loss", "wheel-slip")  # fmt: skip
+                   "odometer-failure", "udp-loss", "wheel-slip", "slide-at-stop",
+                   "odometer-drift", "balise-missed")  # fmt: skip
 """The whole-stack fault scenarios: the campaign's default matrix."""
 HEADLINE_KPIS = ("max_overspeed_kmh", "ad_speed_rms_kmh", "position_error_m.rms",
                  "min_eoa_margin_m", "traction_energy_kwh", "real_time_factor")  # fmt: skip

@@ -19,6 +19,7 @@ vc_eb              bool    the Vital Control's EB is applied
 vc_decay           bool    the Vital Control is in System Decay
 journey_accepted   bool    a journey profile is accepted on board
 journey_ended      bool    the end of the journey is reached
+etcs_braked        bool    ETCS has commanded a service or emergency brake in this run
 =================  ======  ===============================================================
 """
 
@@ -47,6 +48,7 @@ FIELDS: dict[str, type] = {
     "vc_decay": bool,
     "journey_accepted": bool,
     "journey_ended": bool,
+    "etcs_braked": bool,
 }
 _OPERATORS: dict[str, Callable[[Any, Any], bool]] = {
     "==": operator.eq,

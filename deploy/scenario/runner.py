@@ -51,6 +51,7 @@ from deploy.scenario.report import render_report
 from deploy.scenario.schema import (
     Action,
     AtoFailure,
+    BaliseMissed,
     Fault,
     FrictionDrop,
     Obstacle,
@@ -64,6 +65,7 @@ from deploy.scenario.schema import (
     TracksideRestart,
     UdpLinkFault,
     VigilanceAbsent,
+    WheelDiameterError,
     ZenohLinkLoss,
 )
 from deploy.scenario.telemetry import TelemetryRecorder
@@ -100,7 +102,8 @@ VC_DATALOG = "vc-datalog.jsonl"
 WHOLE_STACK_FAULTS = (AtoFailure, FrictionDrop, Obstacle, OdometerFailure, RelayFault,
                       SensorDropout, ShortenedAuthority, TachometerFault,
                       TemporarySpeedRestriction, TracksideRestart, UdpLinkFault,
-                      VigilanceAbsent, ZenohLinkLoss)  # fmt: skip
+                      VigilanceAbsent, ZenohLinkLoss, WheelDiameterError,
+                      BaliseMissed)  # fmt: skip
 """The faults a whole-stack run injects (docs/scenarios.md)."""
 
 
@@ -452,6 +455,10 @@ class _Stack:
             "vc_decay": vital is not None and vital.outputs.system_decay,
             "journey_accepted": stack.journey_plan is not None,
             "journey_ended": ended,
+            "etcs_braked": (
+                stack.etcs.service_brake_interventions + stack.etcs.emergency_brake_interventions
+            )
+            > 0,
         }
 
     # -- faults --------------------------------------------------------------------------------
@@ -858,8 +865,14 @@ def _sensor_settings(faults: tuple[Fault, ...], seed: int) -> SensorSettings:
             corrupt_rate=fault.corrupt, faults_from_s=max(fault.start_s, link.faults_from_s),
             faults_until_s=fault.end_s,
         )  # fmt: skip
+    diameters = [fault.error for fault in faults if isinstance(fault, WheelDiameterError)]
+    if len(diameters) > 1:
+        raise ScenarioRunError("one wheel_diameter fault per scenario")
+    missed = frozenset(group for fault in faults if isinstance(fault, BaliseMissed)
+                       for group in fault.balise_group_ids)  # fmt: skip
     return SensorSettings(
-        seed=seed, link=link,
+        seed=seed, link=link, wheel_diameter_error=diameters[0] if diameters else None,
+        missed_balise_groups=missed,
         faults=SensorFaults(
             imu_outages=tuple(outages["imu"]), odometer_outages=tuple(outages["odometer"]),
             gps_outages=tuple(outages["gps"]), odometer_stuck_at_zero=tuple(stuck),

@@ -173,6 +173,21 @@ class FrictionDrop(_Window):
     factor: float = Field(gt=0.0, le=1.0, description="Adhesion multiplied by this")
 
 
+class WheelDiameterError(_Model):
+    """The wheels' real diameter differs from the calibrated one for the whole run (wear): the
+    axle-end sensors read ``error`` long (calibrated / real − 1; +0.02 reads 2 % long)."""
+
+    kind: Literal["wheel_diameter"]
+    error: float = Field(gt=-0.05, lt=0.05, allow_inf_nan=False)
+
+
+class BaliseMissed(_Model):
+    """The BTM fails to read these balise groups (NID_BG) whenever the train passes them."""
+
+    kind: Literal["balise_missed"]
+    balise_group_ids: tuple[int, ...] = Field(min_length=1, max_length=64)
+
+
 class Obstacle(_Model):
     kind: Literal["obstacle"]
     at_s: Seconds
@@ -212,7 +227,9 @@ Fault = Annotated[
     | Obstacle
     | ShortenedAuthority
     | TemporarySpeedRestriction
-    | TracksideRestart,
+    | TracksideRestart
+    | WheelDiameterError
+    | BaliseMissed,
     Field(discriminator="kind"),
 ]
 

@@ -44,6 +44,7 @@ from trackdb import TrackMap
 __all__ = ["DrivingFunction", "NoJourneyError"]
 
 STOP_TOLERANCE_M = 1.0
+"""Standing this close to a stopping point [m] is standing at it."""
 STANDSTILL_MPS = 0.01
 EOA_STOP_MARGIN_M = 2.0
 """The plan stops this far before the end of the ETCS authority it is given."""
@@ -60,6 +61,9 @@ stays under the ETCS permitted curve, whose SBD uses the full A_brake_service bu
 reaction and build-up times earlier (a stop for the EoA is not a stop planned at the timetable's
 pace: it comes when the MA is shortened, and must never bring an ETCS intervention)."""
 PASSED_M = 10.0
+"""A stop this far behind the front end [m] is passed. Standing between the stop's tolerance and
+this far past it is an overrun: the train has stopped there (it does not run back), and the
+stack reports the overrun."""
 TSR_DELAYS_S = (15.0, 30.0, 60.0, 120.0, 300.0)
 """How late [s] a leg replanned under a new TSR may arrive, tried in turn when it cannot keep
 its schedule."""
@@ -269,9 +273,7 @@ class DrivingFunction:
         stops = self.journey.stops
         while self._served < len(stops):
             stop = stops[self._served]
-            stopped = speed_mps <= STANDSTILL_MPS and abs(stop.distance_m - travelled) <= (
-                STOP_TOLERANCE_M
-            )
+            stopped = speed_mps <= STANDSTILL_MPS and _stands_at(stop, travelled)
             skipped = stop.timing_point_id in self.skipped and travelled > stop.distance_m
             if not (stopped or skipped or travelled > stop.distance_m + PASSED_M):
                 return
@@ -298,6 +300,12 @@ class DrivingFunction:
         delay = max(journey_s - reference_s, 0.0)
         return [(stop, max(stop.arrival_s + delay, journey_s)) for stop in self._stops_ahead()]
 
+    def overrun_m(self, stop: JourneyStop, position_m: float) -> float:
+        """How far the front end at ``position_m`` stands past ``stop`` beyond its tolerance [m]
+        (0 when within it or short of it)."""
+        past_m = position_m - self._origin_m - stop.distance_m
+        return max(past_m - STOP_TOLERANCE_M, 0.0)
+
     def stopped_at(self, position_m: float, speed_mps: float) -> JourneyStop | None:
         """The stop of the journey the vehicle stands at, if any."""
         if self.journey is None or speed_mps > STANDSTILL_MPS:
@@ -306,7 +314,7 @@ class DrivingFunction:
         for stop in self.journey.stops:
             if stop.timing_point_id in self.skipped:
                 continue
-            if abs(stop.distance_m - travelled) <= STOP_TOLERANCE_M:
+            if _stands_at(stop, travelled):
                 return stop
         return None
 
@@ -440,3 +448,9 @@ class DrivingFunction:
             demand = low
         self._last_force_n = demand
         return demand
+
+
+def _stands_at(stop: JourneyStop, travelled_m: float) -> bool:
+    """At ``travelled_m`` [m] from the journey's origin the front end stands at ``stop``: within
+    its tolerance, or past it by less than :data:`PASSED_M` (an overrun)."""
+    return -STOP_TOLERANCE_M <= travelled_m - stop.distance_m <= PASSED_M
