@@ -1,19 +1,32 @@
 """The along-track Kalman filter of the sensor-fusion algorithm (SFA, seed 002).
 
-State ``x = [s, v, b]``: chainage s [m] (unwrapped on a ring: it keeps counting past the
-origin), speed v [m/s] and the longitudinal accelerometer bias b [m/s²]. The IMU is the input:
-its forward specific force, minus the gravity component the track's gradient puts along the body
-x axis (g sin θ, θ the pitch from the gradient at the estimated chainage), minus the bias, drives
+State ``x = [s, v, b, k, e]``: chainage s [m] (unwrapped on a ring: it keeps counting past
+the origin), speed v [m/s], the longitudinal accelerometer bias b [m/s²], the odometer's scale
+error k (its wheel's calibrated over real diameter minus 1: the odometer reads v (1 + k)) and
+the GPS's along-track error e [m] (first-order Gauss–Markov, correlation time τ). The IMU is
+the input: its forward specific force, minus the gravity component the track's gradient puts
+along the body x axis (g sin θ, θ the pitch from the gradient at the estimated chainage), minus
+the bias, drives
 
-    s' = s + v dt + ½ (u − b) dt²,    v' = v + (u − b) dt,    b' = b.
+    s' = s + v dt + ½ (u − b) dt²,   v' = v + (u − b) dt,   b' = b,   k' = k,   e' = e^(−dt/τ) e.
 
-Measurements: the odometer/radar speed (H = [0 1 0], R = σ² from the packet), the GPS fix
-projected on the track map (H = [1 0 0]), and balise-group fixes. Each odometer and GPS update is
-gated on its normalised innovation squared (NIS = y² / S, χ² with one degree of freedom): above
-the gate it is rejected and counted. With no odometer and no GPS the filter runs on the IMU
-alone, as the seed says, only worse: its σ grows and the health says degraded.
+Measurements (docs/sensors.md gives the sensors' errors they model):
 
-The prediction is written by hand (two 3×3 products) because it runs at 100 Hz; the updates go
+- the odometer speed: the mean over its counting window W of the speed read through the scale
+  error, h(x) = (1 + k)(v − (u − b) W/2), linearised; R = σ² from the packet;
+- the GPS fix projected on the track map: the position ``gps_latency_s`` ago plus the GPS's
+  correlated error, H = [1, −latency, 0, 0, 1], R = the white part's σ²;
+- balise-group fixes, H = [1 0 0 0 0]: they calibrate the GPS's correlated error, which then
+  carries their accuracy on for about τ.
+
+Each odometer and GPS update is gated on its normalised innovation squared (NIS = y² / S, χ²
+with one degree of freedom): above the gate it is rejected and counted. The scale error is
+learnt from the GPS and the balise groups against the IMU; without it a worn wheel's few per
+mille would pull the position along by metres a kilometre. With no odometer and no GPS the
+filter runs on the IMU alone, as the seed says, only worse: its σ grows and the health says
+degraded.
+
+The prediction is written by hand (two 5×5 products) because it runs at 100 Hz; the updates go
 through :class:`filterpy.kalman.KalmanFilter`. A test checks the hand-written prediction against
 filterpy's ``predict`` to the last bits that matter.
 """
@@ -43,8 +56,9 @@ FloatArray = npt.NDArray[np.float64]
 
 MATRIX_CACHE_SIZE = 256
 """Prediction steps whose matrices are kept (the cache starts again when full)."""
-_ODO_H = np.array([[0.0, 1.0, 0.0]])
-_POSITION_H = np.array([[1.0, 0.0, 0.0]])
+_POSITION_H = np.array([[1.0, 0.0, 0.0, 0.0, 0.0]])
+DIM_X = 5
+"""State size: chainage, speed, accelerometer bias, odometer scale error, GPS error."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -57,39 +71,75 @@ class FilterConfig:
         σ of the IMU's forward specific force as an input, white [m/s²].
     bias_random_walk_mps2_per_sqrt_s : float
         Random-walk intensity of the accelerometer bias [m/s²/√s].
+    scale_random_walk_per_sqrt_s : float
+        Random-walk intensity of the odometer's scale error [1/√s] (wear is slow; this lets the
+        estimate follow a change of wheel or adhesion).
     initial_position_sigma_m, initial_speed_sigma_mps, initial_bias_sigma_mps2 : float
         σ of the state after a GROUND_TRUTH.
+    initial_scale_sigma : float
+        σ of the odometer's scale error after a GROUND_TRUTH (dimensionless).
     gps_sigma_m : float
-        σ of a GPS fix projected along the track [m].
+        σ of the white part of a GPS fix's error, projected along the track [m].
+    gps_correlated_sigma_m : float
+        Stationary σ of the GPS's correlated (Gauss–Markov) along-track error [m].
+    gps_correlation_time_s : float
+        Correlation time of that error [s].
     gps_max_cross_track_m : float
         A fix further than this from the track is rejected before the filter sees it [m].
     odometer_sigma_floor_mps : float
         Lower bound on the odometer σ taken from its packet [m/s] (a zero σ would be fatal).
     gate_nis : float
-        NIS above which an odometer or GPS update is rejected (χ²₁: 16 ≈ 4 σ).
+        NIS above which an odometer update is rejected (χ²₁: 16 ≈ 4 σ).
+    gps_gate_nis : float
+        NIS above which a GPS update is rejected (χ²₁: 9 = 3 σ): multipath jumps of metres.
+    gps_reanchor_after : int
+        After this many GPS fixes rejected in a row the next one is taken whatever its
+        innovation, the position's variance first widened to cover it: a filter that has
+        drifted during an outage must not gate the GPS out for ever. Longer than a multipath
+        event lasts (in fixes).
+    gps_latency_s : float
+        Age of the position a GPS fix reports when it arrives [s] (the receiver's datasheet
+        latency): the fix is taken as a measurement of s − v·latency.
+    odometer_window_s : float
+        The interval the odometer counts its pulses over [s] (its sample period): its speed is
+        the mean over that window, which lags the speed by half of it; 0 for a speed read at
+        the instant.
     """
 
     acceleration_noise_mps2: float = 0.05
     bias_random_walk_mps2_per_sqrt_s: float = 0.002
+    scale_random_walk_per_sqrt_s: float = 2e-6
     initial_position_sigma_m: float = 1.0
     initial_speed_sigma_mps: float = 0.1
     initial_bias_sigma_mps2: float = 0.1
-    gps_sigma_m: float = 3.0
+    initial_scale_sigma: float = 0.01
+    gps_sigma_m: float = 0.3
+    gps_correlated_sigma_m: float = 0.3
+    gps_correlation_time_s: float = 60.0
     gps_max_cross_track_m: float = 50.0
     odometer_sigma_floor_mps: float = 0.01
     gate_nis: float = 16.0
+    gps_gate_nis: float = 9.0
+    gps_reanchor_after: int = 15
+    gps_latency_s: float = 0.1
+    odometer_window_s: float = 0.05
 
 
 def transition_matrices(
     dt_s: float, config: FilterConfig
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """F (3×3), B (3×1) and Q (3×3) of one prediction over ``dt_s`` [s]."""
+    """F (5×5), B (5×1) and Q (5×5) of one prediction over ``dt_s`` [s]."""
     half_dt2 = 0.5 * dt_s * dt_s
-    transition = np.array([[1.0, dt_s, -half_dt2], [0.0, 1.0, -dt_s], [0.0, 0.0, 1.0]])
-    control = np.array([[half_dt2], [dt_s], [0.0]])
-    noise_input = np.array([half_dt2, dt_s, 0.0])
+    decay = math.exp(-dt_s / config.gps_correlation_time_s)
+    transition = np.eye(DIM_X)
+    transition[0, 1], transition[0, 2], transition[1, 2] = dt_s, -half_dt2, -dt_s
+    transition[4, 4] = decay
+    control = np.array([[half_dt2], [dt_s], [0.0], [0.0], [0.0]])
+    noise_input = np.array([half_dt2, dt_s, 0.0, 0.0, 0.0])
     process = np.outer(noise_input, noise_input) * config.acceleration_noise_mps2**2
     process[2, 2] += config.bias_random_walk_mps2_per_sqrt_s**2 * dt_s
+    process[3, 3] += config.scale_random_walk_per_sqrt_s**2 * dt_s
+    process[4, 4] += config.gps_correlated_sigma_m**2 * (1.0 - decay * decay)
     return transition, control, process
 
 
@@ -115,7 +165,7 @@ def check_fix(chainage_m: float, sigma_m: float, epoch_s: float) -> None:
 
 
 class TrackKalmanFilter:
-    """Chainage, speed and accelerometer bias along one line.
+    """Chainage, speed, accelerometer bias and odometer scale error along one line.
 
     Parameters
     ----------
@@ -128,7 +178,7 @@ class TrackKalmanFilter:
     def __init__(self, track_map: TrackMap, config: FilterConfig | None = None) -> None:
         self.track_map = track_map
         self.config = config or FilterConfig()
-        self.kf = KalmanFilter(dim_x=3, dim_z=1)
+        self.kf = KalmanFilter(dim_x=DIM_X, dim_z=1)
         # Every update is scalar: filterpy's hook for the innovation's inverse takes the
         # reciprocal instead of numpy.linalg.inv (the same value, in a fraction of the time).
         self.kf.inv = _scalar_inverse
@@ -137,29 +187,35 @@ class TrackKalmanFilter:
         self.last_input_mps2 = 0.0
         self.rejected = {"odometer": 0, "gps": 0}
         self.accepted = {"odometer": 0, "gps": 0, "fix": 0}
+        self.reanchored = 0
+        """GPS fixes taken after ``gps_reanchor_after`` rejections in a row."""
+        self._gps_rejections_in_row = 0
         self._matrices_dt_s = -1.0
         # The matrices by step: epochs are STROBE + k / rate, so their differences take a few
         # dozen float values around the IMU period, not one; each is worked out once.
         self._matrices: dict[float, tuple[FloatArray, FloatArray, FloatArray]] = {}
-        self._transition = np.eye(3)
-        self._transition_t = np.eye(3)
-        self._process = np.zeros((3, 3))
+        self._transition = np.eye(DIM_X)
+        self._transition_t = np.eye(DIM_X)
+        self._process = np.zeros((DIM_X, DIM_X))
 
     # -- state -----------------------------------------------------------------------------
 
     def initialise(self, chainage_m: float, speed_mps: float, epoch_s: float) -> None:
         """(Re)start from a GROUND_TRUTH: chainage [m], speed [m/s], at ``epoch_s`` [s]."""
         c = self.config
-        self.kf.x = np.array([[chainage_m], [speed_mps], [0.0]])
+        self.kf.x = np.array([[chainage_m], [speed_mps], [0.0], [0.0], [0.0]])
         self.kf.P = np.diag(
             [
                 c.initial_position_sigma_m**2,
                 c.initial_speed_sigma_mps**2,
                 c.initial_bias_sigma_mps2**2,
+                c.initial_scale_sigma**2,
+                c.gps_correlated_sigma_m**2,
             ]
         )
         self.epoch_s = epoch_s
         self.last_input_mps2 = 0.0
+        self._gps_rejections_in_row = 0
         self.initialised = True
 
     def _require(self) -> None:
@@ -181,6 +237,18 @@ class TrackKalmanFilter:
     def bias_mps2(self) -> float:
         self._require()
         return float(self.kf.x[2, 0])
+
+    @property
+    def odometer_scale_error(self) -> float:
+        """The odometer's estimated scale error k (it reads v (1 + k)), dimensionless."""
+        self._require()
+        return float(self.kf.x[3, 0])
+
+    @property
+    def gps_error_m(self) -> float:
+        """The GPS's estimated correlated along-track error [m] (a fix reads s + e)."""
+        self._require()
+        return float(self.kf.x[4, 0])
 
     @property
     def position_sigma_m(self) -> float:
@@ -231,15 +299,18 @@ class TrackKalmanFilter:
         acceleration = input_mps2 - bias
         x[0, 0] = position + speed * dt_s + 0.5 * acceleration * dt_s * dt_s
         x[1, 0] = speed + acceleration * dt_s
+        x[4, 0] *= self._transition[4, 4]
         self.kf.P = self._transition @ self.kf.P @ self._transition_t + self._process
 
     # -- measurements ----------------------------------------------------------------------
 
-    def _gated_update(self, z: float, h: FloatArray, variance: float, sensor: str) -> bool:
+    def _gated_update(
+        self, z: float, h: FloatArray, variance: float, sensor: str, gate_nis: float
+    ) -> bool:
         kf = self.kf
         innovation = z - float((h @ kf.x)[0, 0])
         innovation_variance = float((h @ kf.P @ h.T)[0, 0]) + variance
-        if innovation * innovation > self.config.gate_nis * innovation_variance:
+        if innovation * innovation > gate_nis * innovation_variance:
             self.rejected[sensor] += 1
             return False
         kf.update(np.array([[z]]), R=np.array([[variance]]), H=h)
@@ -250,8 +321,19 @@ class TrackKalmanFilter:
         """Update with an odometer speed [m/s] and its σ; False when gated out."""
         self._require()
         self.predict_to(epoch_s)
-        sigma = max(sigma_mps, self.config.odometer_sigma_floor_mps)
-        return self._gated_update(speed_mps, _ODO_H, sigma * sigma, "odometer")
+        config = self.config
+        sigma = max(sigma_mps, config.odometer_sigma_floor_mps)
+        x = self.kf.x
+        speed, bias, scale = float(x[1, 0]), float(x[2, 0]), 1.0 + float(x[3, 0])
+        # The pulses counted over the window give its mean speed: the speed now less half the
+        # window's worth of the acceleration (u − b).
+        half_window_s = 0.5 * config.odometer_window_s
+        mean_speed = speed - (self.last_input_mps2 - bias) * half_window_s
+        h = np.array([[0.0, scale, scale * half_window_s, mean_speed, 0.0]])
+        # filterpy takes the innovation as z − H x; the measurement is h(x) = (1 + k) × the mean
+        # speed, not H x, so the linearisation's offset H x − h(x) is added to z.
+        offset = float((h @ x)[0, 0]) - scale * mean_speed
+        return self._gated_update(speed_mps + offset, h, sigma * sigma, "odometer", config.gate_nis)
 
     def unwrap_near_estimate(self, chainage_m: float) -> float:
         """A chainage on the line [m] moved to the lap of the estimate (identity off a ring)."""
@@ -273,7 +355,19 @@ class TrackKalmanFilter:
             self.rejected["gps"] += 1
             return False
         z = self.unwrap_near_estimate(projection.chainage_m)
-        return self._gated_update(z, _POSITION_H, self.config.gps_sigma_m**2, "gps")
+        config = self.config
+        # The fix is where the train was gps_latency_s ago, plus the GPS's correlated error.
+        h = np.array([[1.0, -config.gps_latency_s, 0.0, 0.0, 1.0]])
+        variance = config.gps_sigma_m**2
+        if self._gps_rejections_in_row >= config.gps_reanchor_after:
+            innovation = z - float((h @ self.kf.x)[0, 0])
+            self.kf.P[0, 0] += innovation * innovation
+            self.reanchored += 1
+        if self._gated_update(z, h, variance, "gps", config.gps_gate_nis):
+            self._gps_rejections_in_row = 0
+            return True
+        self._gps_rejections_in_row += 1
+        return False
 
     def fix(self, chainage_m: float, sigma_m: float, epoch_s: float) -> None:
         """A balise-group fix: chainage on the line [m], its σ [m], at ``epoch_s`` [s].

@@ -197,6 +197,16 @@ class ListenerCore:
         self.last_ack_seq = ack.seq_no
         self._last_ack_arrival_s = arrival_s
 
+    def filter_counters(self) -> dict[str, int]:
+        """What the filter did with the measurements: odometer and GPS updates accepted and
+        gated out (``*_rejected``; a GPS fix off the track counts there too), GPS fixes taken
+        after a run of rejections (``gps_reanchored``), balise-group fixes (``fix_accepted``)."""
+        flt = self.filter
+        counters = {f"{name}_accepted": count for name, count in flt.accepted.items()}
+        counters |= {f"{name}_rejected": count for name, count in flt.rejected.items()}
+        counters["gps_reanchored"] = flt.reanchored
+        return counters
+
     def link_lost(self, now_s: float) -> bool:
         """True when OUTPUT datagrams have gone out but no ACK came for ``ack_timeout_s``."""
         reference = self._last_ack_arrival_s

@@ -75,7 +75,8 @@ def test_gravity_of_the_gradient_is_taken_out_of_the_forward_specific_force(
 
 
 def test_gps_and_fixes_unwrap_to_the_lap_of_the_estimate(ring: TrackMap) -> None:
-    flt = TrackKalmanFilter(ring, FilterConfig(gps_sigma_m=2.0))
+    config = FilterConfig(gps_sigma_m=2.0, gps_latency_s=0.0, gps_correlated_sigma_m=0.0)
+    flt = TrackKalmanFilter(ring, config)
     lap = ring.length_m
     flt.initialise(lap + 5.0, 10.0, 0.0)  # second lap, 5 m past the origin
     assert flt.unwrap_near_estimate(lap - 3.0) == pytest.approx(lap - 3.0)
@@ -91,3 +92,93 @@ def test_gps_fix_far_off_the_track_is_rejected(ring: TrackMap) -> None:
     latitude, longitude, _ = ring.geodetic_at(0.0)
     assert not flt.gps(0.0, latitude + 0.01, longitude)
     assert flt.rejected["gps"] == 1
+
+
+def test_a_gps_fix_is_taken_as_the_position_latency_ago(ring: TrackMap) -> None:
+    flt = TrackKalmanFilter(ring, FilterConfig(gps_latency_s=0.2))
+    flt.initialise(100.0, 20.0, 0.0)
+    latitude, longitude, _ = ring.geodetic_at(100.0 - 20.0 * 0.2)
+    assert flt.gps(0.0, latitude, longitude)
+    assert flt.chainage_m == pytest.approx(100.0, abs=0.01)
+
+
+def test_the_odometer_scale_error_is_learnt_against_the_gps(ring: TrackMap) -> None:
+    """A wheel 2 % worn: the odometer reads 2 % fast; the GPS and the IMU teach the filter."""
+    flt = TrackKalmanFilter(ring, FilterConfig(gps_latency_s=0.0))
+    speed_mps, start_m = 15.0, 100.0
+    flt.initialise(start_m, speed_mps, 0.0)
+    for tick in range(1, 120 * 20 + 1):
+        time_s = tick * 0.05
+        flt.predict_to(time_s)
+        flt.odometer(time_s, 1.02 * speed_mps, 0.05)
+        if tick % 20 == 0:
+            latitude, longitude, _ = ring.geodetic_at(start_m + speed_mps * time_s)
+            flt.gps(time_s, latitude, longitude)
+    assert flt.odometer_scale_error == pytest.approx(0.02, abs=0.001)
+    assert flt.speed_mps == pytest.approx(speed_mps, abs=0.02)
+    assert flt.chainage_m == pytest.approx(start_m + speed_mps * 120.0, abs=0.5)
+    assert flt.rejected == {"odometer": 0, "gps": 0}
+
+
+def test_a_multipath_jump_is_gated_and_a_lasting_shift_reanchors(ring: TrackMap) -> None:
+    config = FilterConfig(gps_latency_s=0.0)
+    flt = TrackKalmanFilter(ring, config)
+    flt.initialise(500.0, 0.0, 0.0)
+    latitude, longitude, _ = ring.geodetic_at(508.0)  # 8 m ahead of a train at a standstill
+
+    def standstill_until(time_s: float) -> None:
+        while flt.epoch_s < time_s - 1e-9:
+            flt.odometer(flt.epoch_s + 0.05, 0.0, 0.05)
+
+    for second in range(config.gps_reanchor_after):
+        standstill_until(float(second))
+        assert not flt.gps(float(second), latitude, longitude)
+    assert flt.rejected["gps"] == config.gps_reanchor_after and flt.reanchored == 0
+    assert flt.chainage_m == pytest.approx(500.0, abs=1e-6)
+    standstill_until(float(config.gps_reanchor_after))
+    assert flt.gps(float(config.gps_reanchor_after), latitude, longitude)
+    assert flt.reanchored == 1
+    assert flt.chainage_m > 505.0
+
+
+def test_a_balise_fix_calibrates_the_gps_correlated_error(ring: TrackMap) -> None:
+    flt = TrackKalmanFilter(ring, FilterConfig(gps_latency_s=0.0))
+    flt.initialise(500.0, 0.0, 0.0)
+    latitude, longitude, _ = ring.geodetic_at(500.4)  # the GPS reads 0.4 m ahead, for minutes
+
+    def standstill(seconds: range) -> None:
+        for second in seconds:
+            while flt.epoch_s < second - 1e-9:
+                flt.odometer(flt.epoch_s + 0.05, 0.0, 0.05)
+            flt.gps(float(second), latitude, longitude)
+
+    standstill(range(1, 31))
+    assert flt.chainage_m > 500.15  # pulled towards the GPS
+    flt.fix(500.0, 0.05, 30.0)
+    assert flt.gps_error_m == pytest.approx(0.4, abs=0.1)
+    standstill(range(31, 41))
+    # The GPS's error is known now: its fixes no longer pull the estimate away.
+    assert flt.chainage_m == pytest.approx(500.0, abs=0.06)
+
+
+@pytest.mark.parametrize(("window_s", "bias_limit_mps"), [(0.05, 0.002), (0.0, 0.02)])
+def test_the_odometers_counting_window_is_modelled(
+    ring: TrackMap, window_s: float, bias_limit_mps: float
+) -> None:
+    """Braking at 0.5 m/s²: the odometer's count over 50 ms gives the speed 25 ms ago."""
+    config = FilterConfig(odometer_window_s=window_s, gps_latency_s=0.0)
+    flt = TrackKalmanFilter(ring, config)
+    flt.initialise(100.0, 20.0, 0.0)
+    deceleration, errors = 0.5, []
+    for tick in range(1, 3001):  # 30 s at 100 Hz
+        time_s = tick * 0.01
+        flt.last_input_mps2 = -deceleration
+        flt.predict_to(time_s)
+        if tick % 5 == 0:
+            flt.odometer(time_s, 20.0 - deceleration * (time_s - 0.025), 0.05)
+            errors.append(flt.speed_mps - (20.0 - deceleration * time_s))
+    late = float(np.mean(errors[-200:]))
+    if window_s:
+        assert abs(late) < bias_limit_mps
+    else:  # unmodelled, the lag shows as a speed read high (by up to 12.5 mm/s)
+        assert 0.005 < late < bias_limit_mps

@@ -191,3 +191,18 @@ def test_a_restarted_sender_is_followed_to_its_new_time_base(ring: TrackMap) -> 
     assert core.filter.epoch_s == pytest.approx(0.0)
     assert core.status is not None and core.status.chainage_m == pytest.approx(200.0, abs=0.1)
     assert core.status.health is Health.OK
+
+
+def test_the_filters_gating_is_counted_for_the_listeners_user(ring: TrackMap) -> None:
+    core = ListenerCore(ring)
+    core.feed(packet(SensorType.GROUND_TRUTH, 0, 10.0, 0.0, 0.0, 0.5), 0.0)
+    core.feed(packet(SensorType.STROBE, 1, 0.0), 0.0)
+    core.feed(packet(SensorType.ODOMETER, 2, 10.0, 0.05), 0.0)
+    core.feed(packet(SensorType.ODOMETER, 3, 40.0, 0.05), 0.05)  # no train jumps to 144 km/h
+    latitude, longitude, _ = ring.geodetic_at(600.0)  # 100 m off the estimate: gated out
+    core.feed(packet(SensorType.GPS, 4, latitude, longitude, 0.0), 0.1)
+    core.poll(1.0)
+    assert core.filter_counters() == {
+        "odometer_accepted": 1, "odometer_rejected": 1, "gps_accepted": 0, "gps_rejected": 1,
+        "fix_accepted": 0, "gps_reanchored": 0,
+    }  # fmt: skip

@@ -101,10 +101,9 @@ def test_with_the_bogie_model_the_odometer_reads_the_wheel_so_slip_shows(ring: T
         brake_torque_rear_nm=0.0, normal_force_front_n=0.0, normal_force_rear_n=0.0,
         creepage_front=0.15, creepage_rear=0.1, traction_energy_j=0.0, regen_energy_j=0.0,
     )  # fmt: skip
-    modules = InterfaceModules(
-        ring, rng=np.random.default_rng(0), noise=SensorNoise(odometer_sigma_mps=0.0)
-    )
+    modules = InterfaceModules(ring, rng=np.random.default_rng(0), noise=SensorNoise.noiseless())
     truth = truth_from_bogie(slipping)
     modules.start(truth)
     odometer = next(p for p in map(decode_input, modules.step(truth)) if p.sensor_type == 2)
-    assert odometer.doubles == (pytest.approx(25.0 * 0.46), 0.0)
+    speed_mps, sigma_mps = odometer.doubles
+    assert speed_mps == pytest.approx(25.0 * 0.46) and sigma_mps == 0.0
