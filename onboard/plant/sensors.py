@@ -35,7 +35,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from onboard.plant.interfaces import BogieTruth
-from onboard.plant.point_mass import GRAVITY_MPS2
 from onboard.plant.readings import WheelReading
 from onboard.plant.wheel_sensors import (
     DIAMETER_ERROR_SIGMA,
@@ -44,6 +43,7 @@ from onboard.plant.wheel_sensors import (
     draw_diameter_error,
 )
 from protocol.udp import SEQ_MODULO, InputPacket, SensorType, encode_input
+from protocol.units import GRAVITY_MPS2
 from trackdb import TrackMap
 
 __all__ = [

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from onboard.plant.point_mass import GRAVITY_MPS2
 from onboard.plant.sensors import InterfaceModules, SensorNoise, TruthSample
 from protocol.udp import InputPacket, SensorType, decode_input
+from protocol.units import GRAVITY_MPS2
 from trackdb import TrackMap, load_seed_line
 
 RING = TrackMap(load_seed_line("bologna-ring"))
