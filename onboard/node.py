@@ -43,7 +43,7 @@ from onboard.plant.balise_reader import BaliseReader, BaliseReaderFaults
 from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS
 from onboard.plant.sensors import InterfaceModules
 from onboard.plant.vehicle import BogiePlant, SimulatedVehicle
-from onboard.plant.wheel_sensors import WheelSensors
+from onboard.plant.wheel_sensors import WheelSensors, draw_diameter_error
 from onboard.runtime import Clock, Executive, SimClock
 from onboard.runtime.clock import NS_PER_S
 from onboard.session import SessionClient
@@ -694,6 +694,12 @@ def _simulated_vehicle(
     """The dynamics at the settings' fidelity, with the sensors that watch them (their
     randomness from the sensors' seed, one stream each)."""
     sensors, position_m = settings.sensors, settings.start_position_m
+    wheel_rng = np.random.default_rng([sensors.seed, 2])
+    # One wheel-diameter error for every sensor that reads the wheels (the axle-end sensors and
+    # the sensor fusion's wheel-based odometer), so that they agree.
+    diameter_error = sensors.wheel_diameter_error
+    if diameter_error is None:
+        diameter_error = draw_diameter_error(wheel_rng)
     dynamics = (
         BogiePlant(URV_BOGIE_PARAMETERS, position_m=position_m, initial_soc=settings.initial_soc)
         if settings.fidelity == "bogie"
@@ -703,10 +709,9 @@ def _simulated_vehicle(
         track_map, dynamics,
         interface_modules=InterfaceModules(
             track_map, rng=np.random.default_rng(sensors.seed), noise=sensors.noise,
-            faults=sensors.faults,
+            faults=sensors.faults, diameter_error=diameter_error,
         ),
-        wheel_sensors=WheelSensors(rng=np.random.default_rng([sensors.seed, 2]),
-                                   diameter_error=sensors.wheel_diameter_error),
+        wheel_sensors=WheelSensors(rng=wheel_rng, diameter_error=diameter_error),
         balise_reader=BaliseReader(
             track_map, rng=np.random.default_rng([sensors.seed, 3]),
             faults=BaliseReaderFaults(missed_group_ids=sensors.missed_balise_groups),

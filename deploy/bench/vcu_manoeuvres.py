@@ -15,7 +15,7 @@ every ``dt_s`` and reads back, as over its CAN buses:
 
 The drives' powers come from the plant's actual motor torques (after their lag and torque–speed
 curve) times the axles' speeds. The VCU's parameters are derived from the bogie's
-(:func:`~onboard.vcu.feedback.vcu_parameters_for`) so that the torques and pressures it
+(:func:`~onboard.vcu.parameters.vcu_parameters_for`) so that the torques and pressures it
 commands mean to the plant what the VCU means by them. A bench of the VCU alone
 (``ato bench plant --plots``, the seed 003 tests); the onboard process runs the same loop in
 :class:`onboard.vcu.vehicle.BogieVehicle`.
@@ -31,11 +31,12 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from deploy.bench.vcu_closed_loop import step_powertrain, vcu_inputs
 from onboard.plant.bogie import BogieModel
 from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS, BogieParameters
 from onboard.plant.interfaces import ActuatorCommands
 from onboard.plant.powertrain import Powertrain, PowertrainParameters
-from onboard.vcu.feedback import step_powertrain, vcu_inputs, vcu_parameters_for
+from onboard.vcu import vcu_parameters_for
 from onboard.vcu.parameters import VcuParameters
 from onboard.vcu.unit import VehicleControlUnit
 from protocol.units import MPS_PER_KMH
@@ -202,7 +203,7 @@ def run_manoeuvre(
 ) -> ManoeuvreRecord:
     """Run ``manoeuvre`` in closed loop on level track and return its time series.
 
-    ``vcu_parameters`` defaults to :func:`~onboard.vcu.feedback.vcu_parameters_for` the
+    ``vcu_parameters`` defaults to :func:`~onboard.vcu.parameters.vcu_parameters_for` the
     bogie. The bogie model runs about 25× faster than real time, so a 20 s manoeuvre takes
     under a second.
     """

@@ -19,9 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from deploy.bench.vcu_closed_loop import powertrain_feedback
 from onboard.plant.point_mass import URV_PARAMETERS, PointMassModel, PointMassParameters
 from onboard.plant.powertrain import Powertrain, PowertrainParameters
-from onboard.vcu.feedback import powertrain_feedback
 from onboard.vcu.parameters import VcuInputs, VcuParameters
 from onboard.vcu.unit import VehicleControlUnit
 from protocol.units import MPS_PER_KMH

@@ -10,14 +10,16 @@ in :mod:`deploy.bench.vcu_mission` and :mod:`deploy.bench.vcu_manoeuvres`.
 """
 
 from onboard.vcu.braking import BlendedBraking, BrakingSplit, electric_share
-from onboard.vcu.feedback import (
-    powertrain_feedback,
-    step_powertrain,
-    vcu_inputs,
+from onboard.vcu.drive import VcuDrive
+from onboard.vcu.limits import BatteryOverload, EnergyManager, SlipperyRail, temperature_factor
+from onboard.vcu.parameters import (
+    BrakingPhase,
+    Limitation,
+    VcuInputs,
+    VcuParameters,
+    VcuStatus,
     vcu_parameters_for,
 )
-from onboard.vcu.limits import BatteryOverload, EnergyManager, SlipperyRail, temperature_factor
-from onboard.vcu.parameters import BrakingPhase, Limitation, VcuInputs, VcuParameters, VcuStatus
 from onboard.vcu.traction import (
     AxleSlipProtection,
     TorqueSplit,
@@ -37,6 +39,8 @@ __all__ = [
     "SlipperyRail",
     "SpeedLoop",
     "TorqueSplit",
+    "VcuDrive",
+    "VcuDrive",
     "VcuInputs",
     "VcuParameters",
     "VcuStatus",
@@ -44,9 +48,6 @@ __all__ = [
     "electric_share",
     "leading_share",
     "motor_torque_limit_nm",
-    "powertrain_feedback",
-    "step_powertrain",
     "temperature_factor",
-    "vcu_inputs",
     "vcu_parameters_for",
 ]

@@ -6,12 +6,15 @@ seed (marked so) or an assumption written next to it. ``docs/vcu.md`` lists them
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from enum import StrEnum
 
+from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS, BogieParameters
 from protocol.units import MPS_PER_KMH
 
 __all__ = [
+    "vcu_parameters_for",
     "BrakingPhase",
     "Limitation",
     "VcuInputs",
@@ -152,3 +155,22 @@ class VcuStatus:
     @property
     def slip_detected(self) -> bool:
         return self.slip_front or self.slip_rear
+
+
+def vcu_parameters_for(
+    bogie: BogieParameters = URV_BOGIE_PARAMETERS, base: VcuParameters | None = None
+) -> VcuParameters:
+    """VCU parameters whose plant constants are the bogie's: wheel radius [m], motor torque
+    [N·m] and power [W] per wheelset, brake gain [N·m/Pa] and maximum pressure [Pa].
+
+    The VCU's defaults assume 6.9e-3 N·m/Pa up to 5 bar; the bogie's brakes give 1.035e-2 N·m/Pa
+    up to 4 bar, so without this the VCU's pressures would brake half as hard again as meant.
+    """
+    return dataclasses.replace(
+        base if base is not None else VcuParameters(),
+        wheel_radius_m=bogie.wheel_radius_m,
+        max_motor_torque_nm=bogie.motor_max_torque_nm,
+        max_motor_power_w=bogie.motor_max_power_w,
+        brake_gain_nm_per_pa=bogie.brake_gain_m3,
+        max_brake_pressure_pa=bogie.brake_max_pressure_pa,
+    )

@@ -1,44 +1,21 @@
-"""What the VCU reads back from the vehicle, and what it must know of the vehicle's hardware.
+"""The VCU in closed loop with the plant for the seed 003 benches: what the VCU reads, taken
+straight from the truth.
 
-Used wherever the VCU runs in closed loop with the bogie model and the powertrain: the onboard
-process's bogie-fidelity vehicle (:mod:`onboard.vcu.vehicle`) and the seed 003 benches
-(``deploy.bench``).
-
-- :func:`vcu_parameters_for`: VCU parameters whose plant constants are the bogie's.
-- :func:`powertrain_feedback`: the BMS, range-extender and drive-temperature signals.
-- :func:`vcu_inputs`: the demand, the speeds and that feedback, as over the VCU's buses.
-- :func:`step_powertrain`: the powertrain fed with the drives' actual mechanical powers.
+The onboard process gives its VCU the sensors' readings (:mod:`onboard.vcu.drive`); the
+benches of seed 003 (:mod:`deploy.bench.vcu_mission`, :mod:`deploy.bench.vcu_manoeuvres`)
+reproduce the seed's figures with the VCU on ideal measurements, as the seed does, and feed the
+powertrain from the bogie model's truth. They live here, off the train.
 """
 
 from __future__ import annotations
 
 import dataclasses
 
-from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS, BogieParameters
 from onboard.plant.interfaces import BogieTruth
 from onboard.plant.powertrain import Powertrain
-from onboard.vcu.parameters import VcuInputs, VcuParameters
+from onboard.vcu.parameters import VcuInputs
 
-__all__ = ["powertrain_feedback", "step_powertrain", "vcu_inputs", "vcu_parameters_for"]
-
-
-def vcu_parameters_for(
-    bogie: BogieParameters = URV_BOGIE_PARAMETERS, base: VcuParameters | None = None
-) -> VcuParameters:
-    """VCU parameters whose plant constants are the bogie's: wheel radius [m], motor torque
-    [N·m] and power [W] per wheelset, brake gain [N·m/Pa] and maximum pressure [Pa].
-
-    The VCU's defaults assume 6.9e-3 N·m/Pa up to 5 bar; the bogie's brakes give 1.035e-2 N·m/Pa
-    up to 4 bar, so without this the VCU's pressures would brake half as hard again as meant.
-    """
-    return dataclasses.replace(
-        base if base is not None else VcuParameters(),
-        wheel_radius_m=bogie.wheel_radius_m,
-        max_motor_torque_nm=bogie.motor_max_torque_nm,
-        max_motor_power_w=bogie.motor_max_power_w,
-        brake_gain_nm_per_pa=bogie.brake_gain_m3,
-        max_brake_pressure_pa=bogie.brake_max_pressure_pa,
-    )
+__all__ = ["powertrain_feedback", "step_powertrain", "vcu_inputs"]
 
 
 def powertrain_feedback(powertrain: Powertrain, demand: VcuInputs) -> VcuInputs:
