@@ -80,6 +80,7 @@ from protocol.registry import (
     STATUS,
     STATUS_ACK,
 )
+from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap
 
 __all__ = ["Fidelity", "NODE_VC_CONFIG", "OnboardNode", "OnboardSettings", "TASK_TABLE"]
@@ -398,7 +399,7 @@ class OnboardNode:
                 self.stack.remote(body.target_speed_mps, now_s)
                 self.emit(
                     m.EventSeverity.INFO, "rd.target_speed",
-                    f"target {body.target_speed_mps * 3.6:.1f} km/h by {command.issued_by}",
+                    f"target {body.target_speed_mps / MPS_PER_KMH:.1f} km/h by {command.issued_by}",
                     now_ns=now_ns,
                 )  # fmt: skip
         elif isinstance(body, m.EngageCommand):

@@ -41,6 +41,7 @@ from onboard.track_database_manager import TrackDatabaseManager
 from onboard.vc.installation import VcInstallation
 from onboard.vc.ipc import VcEventKind
 from protocol import messages as m
+from protocol.units import MPS_PER_KMH
 from trackdb import TemporarySpeedRestriction, TrackMap
 
 __all__ = ["Locator", "OnboardStack", "StackEvent", "authority_from_extent"]
@@ -226,7 +227,7 @@ class OnboardStack:
                 id=message.restriction_id, start_m=message.start_m, end_m=message.end_m,
                 speed_mps=message.speed_mps,
             ))  # fmt: skip
-            what = (f"TSR {message.restriction_id} {message.speed_mps * 3.6:.0f} km/h over "
+            what = (f"TSR {message.restriction_id} {message.speed_mps / MPS_PER_KMH:.0f} km/h over "
                     f"{message.start_m:.0f}..{message.end_m:.0f} m")  # fmt: skip
         self.driving.speed_limits_changed(now_s, position_m=self.position_m,
                                           speed_mps=self.speed_mps)  # fmt: skip

@@ -80,6 +80,7 @@ from onboard.vc import hardware as vc_hardware
 from onboard.vc.installation import VcFaults
 from protocol import ZenohSettings, open_session
 from protocol import messages as m
+from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap, load_seed_line
 from trackside.config import Settings
 from trackside.main import create_app
@@ -428,7 +429,7 @@ class _Stack:
         stack = self.node.stack
         return Progress(
             sim_time_s=self.node.clock.now_s, duration_s=self.spec.duration_s,
-            speed_kmh=self.node.plant.speed_mps * 3.6, etcs_mode=stack.etcs.mode.value,
+            speed_kmh=self.node.plant.speed_mps / MPS_PER_KMH, etcs_mode=stack.etcs.mode.value,
             ato_state=stack.ato_state.value, sc_state=stack.driving.state.value,
         )  # fmt: skip
 
@@ -438,7 +439,7 @@ class _Stack:
         stack, plant = node.stack, node.plant
         vital = stack.vital
         driving = stack.driving
-        standstill = plant.speed_mps * 3.6 < STANDSTILL_KMH
+        standstill = plant.speed_mps / MPS_PER_KMH < STANDSTILL_KMH
         ended = (
             driving.journey is not None and driving.next_stop(plant.position_m) is None
             and standstill
@@ -446,7 +447,7 @@ class _Stack:
         return {
             "time_s": node.clock.now_s,
             "position_m": node.track_map.normalise(plant.position_m),
-            "speed_kmh": plant.speed_mps * 3.6,
+            "speed_kmh": plant.speed_mps / MPS_PER_KMH,
             "etcs_mode": stack.etcs.mode.value,
             "ato_state": stack.ato_state.value,
             "sc_state": driving.state.value,
@@ -688,7 +689,9 @@ class _Stack:
         body = {
             "id": journey.id, "line_id": self.spec.line,
             "start_position_m": self.node.track_map.normalise(self.node.plant.position_m),
-            "max_speed_mps": None if journey.max_speed_kmh is None else journey.max_speed_kmh / 3.6,
+            "max_speed_mps": (
+                None if journey.max_speed_kmh is None else journey.max_speed_kmh * MPS_PER_KMH
+            ),
             "timing_points": [p.model_dump(mode="json") for p in journey.timing_points],
         }  # fmt: skip
         stored = self.rest.post("/api/v1/journeys", json=body, headers=self.headers)

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import pytest
-
 from dataclasses import dataclass
+
+import pytest
 
 from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.stack import OnboardStack

@@ -11,6 +11,7 @@ from fastapi import APIRouter, HTTPException, Path, Query, status
 from pydantic import BaseModel, ConfigDict, Field
 
 from protocol import messages as m
+from protocol.units import MPS_PER_KMH
 from trackside.api.deps import (
     BridgeDep,
     CommandsDep,
@@ -207,7 +208,7 @@ def rd_target_speed(
     vehicle_id: VehiclePath, body: TargetSpeedRequest, commands: CommandsDep, user: DriverUser
 ) -> CommandAnswer:
     """Remote driving: the speed to hold [km/h]."""
-    command = m.RemoteDrivingTargetCommand(target_speed_mps=body.target_speed_kmh / 3.6)
+    command = m.RemoteDrivingTargetCommand(target_speed_mps=body.target_speed_kmh * MPS_PER_KMH)
     return _send(commands, user, vehicle_id, command)
 
 
