@@ -159,10 +159,13 @@ def replay(
     sensors: Annotated[
         str, typer.Option(help="Sensors enabled, comma-separated: imu,odometer,gps.")
     ] = "imu,odometer,gps",
-    gps_sigma_m: Annotated[float, typer.Option(help="GPS σ along the track [m].")] = 3.0,
+    gps_sigma_m: Annotated[
+        float | None, typer.Option(help="GPS σ along the track [m]; the filter's by default.")
+    ] = None,
     acceleration_sigma: Annotated[
-        float, typer.Option(help="IMU acceleration input σ [m/s²].")
-    ] = 0.05,
+        float | None,
+        typer.Option(help="IMU acceleration input σ [m/s²]; the filter's by default."),
+    ] = None,
 ) -> None:
     """Replay a recording faster than real time; print errors against the truth."""
     from deploy.bench.sfa_recording import Recording, RecordingError
@@ -172,12 +175,20 @@ def replay(
     chosen = frozenset(name.strip() for name in sensors.split(",") if name.strip())
     if not chosen <= ALL_SENSORS:
         raise typer.BadParameter(f"unknown sensors {sorted(chosen - ALL_SENSORS)}")
-    if gps_sigma_m <= 0 or acceleration_sigma <= 0:
+    if any(sigma is not None and sigma <= 0 for sigma in (gps_sigma_m, acceleration_sigma)):
         raise typer.BadParameter("σ must be positive")
+    # The node's filter unless told otherwise, so that a replay runs what the vehicle runs.
+    defaults = FilterConfig()
     config = ListenerConfig(
         sensors=chosen,
-        filter=FilterConfig(gps_sigma_m=gps_sigma_m, acceleration_noise_mps2=acceleration_sigma),
-    )
+        filter=FilterConfig(
+            gps_sigma_m=defaults.gps_sigma_m if gps_sigma_m is None else gps_sigma_m,
+            acceleration_noise_mps2=(
+                defaults.acceleration_noise_mps2 if acceleration_sigma is None
+                else acceleration_sigma
+            ),
+        ),
+    )  # fmt: skip
     try:
         result = run_replay(Recording.load(file), config)
     except (RecordingError, KeyError) as exc:
