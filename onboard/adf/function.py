@@ -51,8 +51,9 @@ EOA_STOP_MARGIN_M = 2.0
 EOA_MOVED_M = 5.0
 """A plan stopping for the EoA is redone when the EoA moves on by more than this (or closer)."""
 ODOMETRY_SHARE = 0.06
-"""The SvL seen from the max-safe front end comes closer by 5 % of the distance run (the
-odometry interval grows): the plan anticipates it, with a margin."""
+"""The SvL seen from the max-safe front end comes closer as the odometry interval grows with the
+distance run (3 % for the URV's odometer, docs/etcs.md; SUBSET-041 allows 5 %): the plan
+anticipates it, with a margin."""
 ARRIVAL_RESOLUTION_S = 1e-3
 """How closely the arrival estimates find the time of the reference at the vehicle [s]."""
 AUTHORITY_BRAKING_MPS2 = 0.35
@@ -104,6 +105,8 @@ class DrivingFunction:
         self._origin_s = 0.0
         self._last_force_n = 0.0
         self._eoa_stop_m: float | None = None
+        self._eoa_planned_for_m: float | None = None
+        """The EoA [m from the origin] the stop at ``_eoa_stop_m`` was planned for."""
         self._served = 0
         """How many stops of the journey have been served (stopped at, or passed)."""
         """Where the current plan stops for the EoA (distance travelled), when it does."""
@@ -346,13 +349,22 @@ class DrivingFunction:
             return
         if eoa is not None and eoa - EOA_STOP_MARGIN_M < stop.distance_m - STOP_TOLERANCE_M:
             target = eoa - EOA_STOP_MARGIN_M - ODOMETRY_SHARE * max(eoa - travelled, 0.0)
-            known = self._eoa_stop_m
-            if known is not None and known - 0.5 <= target <= known + EOA_MOVED_M:
+            known, planned_for = self._eoa_stop_m, self._eoa_planned_for_m
+            # Hold the plan unless the stop must come closer, or the EoA itself moved on: as
+            # the train runs, the anticipated growth of the interval shrinks with the distance
+            # left faster than the interval grows, so the target alone creeps on; following it
+            # replan after replan brought the stop to the edge of ETCS's permitted curve.
+            if (
+                known is not None
+                and planned_for is not None
+                and target >= known - 0.5
+                and eoa <= planned_for + EOA_MOVED_M
+            ):
                 return
             if target - travelled < STOP_TOLERANCE_M:
                 return  # at it already: the current plan holds the train
             self._replan(now_s, travelled, speed_mps, target, arrival_s=None)
-            self._eoa_stop_m = target
+            self._eoa_stop_m, self._eoa_planned_for_m = target, eoa
         elif self._eoa_stop_m is not None:
             self._replan(now_s, travelled, speed_mps, stop.distance_m, arrival_s=stop.arrival_s)
             self._eoa_stop_m = None

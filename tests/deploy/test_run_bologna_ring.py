@@ -38,13 +38,19 @@ def test_bologna_ring_meets_the_field_test_kpis_and_repeats_exactly(tmp_path: Pa
     assert first["real_time_factor"] > 0.0
     breakdown = first["wall_time_breakdown"]
     tasks = breakdown["tasks"]
-    assert {"sfa", "control", "vc.B", "vc.C", "vc.A"} <= tasks.keys()
-    assert tasks["vc.B"]["releases"] == pytest.approx(first["sim_time_s"] / 0.002, abs=2)
+    # The VC is two boards in 2-out-of-2 (each board's tasks, the pair's voter) and its datalog.
+    boards = {f"vc{board}.{task}" for board in (0, 1) for task in "ABC"}
+    assert {"sfa", "control", "etcs", "vc.2oo2", "vc.datalog"} | boards <= tasks.keys()
+    assert tasks["vc0.B"]["releases"] == pytest.approx(first["sim_time_s"] / 0.002, abs=2)
+    assert first["odometry_interval_m"]["outside_max_m"] == 0.0
+    assert first["etcs_estimate_error_m"]["max"] > 0.0
+    assert (tmp_path / "first" / "vc-datalog.jsonl").stat().st_size > 0
     in_tasks_s = sum(task["total_s"] for task in tasks.values())
     assert 0.0 < in_tasks_s <= breakdown["lockstep_s"] <= first["wall_time_s"]
     telemetry = np.load(tmp_path / "first" / "telemetry.npz")
     assert telemetry["speed_mps"].max() == pytest.approx(40 / 3.6, abs=0.5)
-    assert "<img" in (tmp_path / "first" / "report.html").read_text()
+    report = (tmp_path / "first" / "report.html").read_text()
+    assert report.count("<img") == 4 and "ETCS interval [m]" in report  # odometry plotted
 
     second = _run(tmp_path / "second")
     for key in WALL_CLOCK:

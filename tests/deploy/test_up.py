@@ -15,7 +15,10 @@ from pathlib import Path
 
 import httpx
 import pytest
+from typer.testing import CliRunner
 
+from deploy.cli import app
+from onboard.vc.datalog import read_datalog
 from tests.conftest import wait_for
 
 pytestmark = pytest.mark.e2e
@@ -175,3 +178,22 @@ def test_both_vehicles_are_driven_through_a_journey_over_rest(tmp_path: Path) ->
         up.process.send_signal(signal.SIGTERM)
         assert up.process.wait(30.0) == 0
         assert not [name for name, pid in up.pids.items() if _running_pid(pid)]
+
+
+def test_each_onboard_runs_a_two_board_vc_whose_datalog_replays(up: Up, tmp_path: Path) -> None:
+    """`ato up`'s onboards fit the VC as on the seeds' vehicle: two boards in 2-out-of-2, with
+    the datalog recorded under the data directory, which `ato vc replay` reads."""
+
+    def replicas() -> object:
+        vital = _status(up, "URV1").get("vital_control") or {}
+        return vital.get("replicas") if isinstance(vital, dict) else None
+
+    assert wait_for(lambda: replicas() == 2, 20.0)
+    up.process.send_signal(signal.SIGTERM)
+    assert up.process.wait(30.0) == 0
+    for vehicle in ("URV1", "URV2"):
+        datalog = tmp_path / "vc" / f"{vehicle}.jsonl"
+        assert read_datalog(datalog).records, f"{vehicle}: nothing recorded"
+        replay = CliRunner().invoke(app, ["vc", "replay", str(datalog)])
+        assert replay.exit_code == 0, replay.output
+        assert f"VC datalog {vehicle}.jsonl" in replay.output
