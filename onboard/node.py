@@ -10,7 +10,7 @@ The node is the process's composition root: it alone holds the simulated vehicle
 part that reads the truth) and hands its outputs on: the interface-modules' datagrams to the
 sensor fusion, the axle-end sensors' readings and the BTM's balise groups to ETCS, the VCU and
 the VC, the drives' feedback to the ADF. It never reads the vehicle's state itself
-(``tests/test_truth_boundary.py`` checks which of its members the node touches).
+(``tests/test_architecture.py`` checks which of its members the node touches).
 
 Commands are validated and acknowledged on arrival, then executed at the next release of the
 ``commands`` task, so that what they change happens at a tick of simulated time.
