@@ -251,6 +251,24 @@ class VitalControl:
             odometry_efficient=b.odometry_efficient if b else False,
         )
 
+    def vote_key(self) -> tuple[object, ...]:
+        """What a 2-out-of-2 pair votes on, as a plain tuple: the fields of
+        :class:`~onboard.vc.redundancy.ReplicaView`, in its order, taken as :attr:`outputs`
+        takes them but without building them all (the voter asks every 2 ms)."""
+        b, c = self.task_b.status.read(), self.task_c.status.read()
+        decaying = bool((b.decay_reasons if b else ()) or (c.decay_reasons if c else ()))
+        return (
+            not (c.valves_energised if c else False),
+            decaying or (c is not None and c.system_decay),
+            b.etcs_isolated if b else not self.hardware.relay.commanded_inserted,
+            self.task_a.fsm.state,
+            self.task_b.fsm.state,
+            self.task_c.brake.state,
+            self.task_c.etcs.state,
+            b.standstill if b else False,
+            b.odometry_efficient if b else False,
+        )
+
     @property
     def events(self) -> list[VcEvent]:
         """Tasks B's and C's notifications, in time order (B before C within a tick)."""

@@ -274,8 +274,11 @@ class TwoOutOfTwo:
             if self.watchdogs[index].check(now_s) and not self.tripped:
                 last = self.watchdogs[index].last_kick_s
                 self._trip(now_s, PairEventKind.WATCHDOG_EXPIRED, index, f"last kick {last:.3f} s")
-        first, second = (ReplicaView.of(replica.outputs) for replica in self.replicas)
-        differences = first.differences(second)
+        # The vote's key first (cheap); the fields that differ only when they do.
+        differences: tuple[str, ...] = ()
+        if self.replicas[0].vote_key() != self.replicas[1].vote_key():
+            first, second = (ReplicaView.of(replica.outputs) for replica in self.replicas)
+            differences = first.differences(second)
         if not differences:
             self.disagreeing_since_s = None
         elif self.disagreeing_since_s is None:

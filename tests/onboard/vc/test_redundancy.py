@@ -25,6 +25,7 @@ from onboard.vc.redundancy import (
     RedundancyConfig,
     ReplicaFault,
     ReplicaFaultKind,
+    ReplicaView,
     TwoOutOfTwo,
     Watchdog,
 )
@@ -170,3 +171,19 @@ def test_bad_parameters_are_refused() -> None:
         RedundancyConfig(watchdog_timeout_s=-1.0)
     with pytest.raises(VcInputError):
         ReplicaFault(kind=ReplicaFaultKind.HALT, replica=2, start_s=0.0)
+
+
+def test_the_vote_key_is_the_replica_view_of_the_outputs() -> None:
+    """The voter compares cheap keys every 2 ms; a key must say exactly what the view says, in
+    a nominal stretch and through a disagreement (replica 1's board goes noisy)."""
+    noisy = TachometerFault(mode=TachometerFaultMode.NOISY, start_s=3.0)
+    executive, pair = _pair(tachometer_faults=((), (noisy,)))
+    keys_differed = False
+    for _ in range(500):  # 5 s: the board goes noisy at 3 s, the pair trips soon after
+        executive.run_for(0.01)
+        views = [ReplicaView.of(replica.outputs) for replica in pair.replicas]
+        keys = [replica.vote_key() for replica in pair.replicas]
+        for view, key in zip(views, keys, strict=True):
+            assert key == tuple(getattr(view, name) for name in ReplicaView.__slots__)
+        keys_differed |= keys[0] != keys[1]
+    assert keys_differed and pair.tripped_by is PairEventKind.DISAGREEMENT
