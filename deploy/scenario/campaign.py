@@ -47,6 +47,8 @@ FAULT_SCENARIOS = ("ma-shortened", "obstacle", "vigilance-absent", "ato-failure"
                    "odometer-failure", "udp-loss", "wheel-slip", "slide-at-stop",
                    "odometer-drift", "balise-missed")  # fmt: skip
 """The whole-stack fault scenarios: the campaign's default matrix."""
+STOP_KPIS = ("stop_error_m", "arrival_error_s")
+"""Per stop: their absolute values over every stop of a scenario's runs are distributed."""
 HEADLINE_KPIS = ("max_overspeed_kmh", "ad_speed_rms_kmh", "position_error_m.rms",
                  "min_eoa_margin_m", "traction_energy_kwh", "real_time_factor")  # fmt: skip
 
@@ -198,6 +200,13 @@ def _kpi(kpis: dict[str, Any], path: str) -> float | None:
     return float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
 
 
+def _stop_values(kpis: dict[str, Any] | None, key: str) -> list[float]:
+    """``key`` of every stop the run made (none for a crash)."""
+    if kpis is None:
+        return []
+    return [float(stop[key]) for stop in kpis.get("stops", []) if stop.get(key) is not None]
+
+
 def _distribution(values: list[float]) -> dict[str, float] | None:
     finite = np.asarray([v for v in values if math.isfinite(v)])
     if finite.size == 0:
@@ -232,6 +241,12 @@ def summarise(results: Sequence[CellResult]) -> dict[str, Any]:
                     ]  # fmt: skip
                 )
                 for path in HEADLINE_KPIS
+            }
+            | {
+                f"stops.{key}.abs": _distribution(
+                    [abs(v) for r in ran for v in _stop_values(r.kpis, key)]
+                )
+                for key in STOP_KPIS
             },
         }
     return {
@@ -249,6 +264,7 @@ def summarise(results: Sequence[CellResult]) -> dict[str, Any]:
                 "failed_expectations": [] if r.kpis is None else [
                     e["name"] for e in r.kpis["expectations"] if not e["ok"]
                 ],
+                "stops": {key: _stop_values(r.kpis, key) for key in STOP_KPIS},
             }
             for r in results
         ],

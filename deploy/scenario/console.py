@@ -140,7 +140,8 @@ def campaign_from_cli(
     table = Table(title=f"campaign: {summary['runs']} runs, {summary['crashed']} crashed, "
                   f"{summary['unsafe']} unsafe")  # fmt: skip
     for column in ("scenario", "runs", "passed", "failed", "crashed", "unsafe",
-                   "max overspeed [km/h]", "min EoA margin [m]", "RTF median"):  # fmt: skip
+                   "max overspeed [km/h]", "min EoA margin [m]", "|stop error| [m]",
+                   "RTF median"):  # fmt: skip
         table.add_column(column)
     for name, row in summary["scenarios"].items():
         kpis = row["kpis"]
@@ -152,6 +153,8 @@ def campaign_from_cli(
         table.add_row(name, str(row["runs"]), str(row["passed"]), str(row["failed"]),
                       str(row["crashed"]), str(row["unsafe"]),
                       stat("max_overspeed_kmh", "max"), _min_margin(results, name),
+                      " / ".join(stat("stops.stop_error_m.abs", which)
+                                 for which in ("median", "p99", "max")),
                       stat("real_time_factor", "median"))  # fmt: skip
     Console().print(table)
     for cell in summary["cells"]:
