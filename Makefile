@@ -50,6 +50,9 @@ bench: $(VENV)/.installed-test
 	$(BIN)/ato bench vc
 	$(BIN)/ato bench sfa
 	$(BIN)/ato bench run
+	# 500 generated scenarios from the ring's space, seed 1 (docs/scenarios.md, "Generated
+	# scenarios"); exit 1 on an invariant violated.
+	$(BIN)/ato campaign --generate 500 --seed 1 --json .ato/bench/generated.json
 
 clean:
 	rm -rf $(VENV) .ato .mypy_cache .pytest_cache .ruff_cache

@@ -219,11 +219,37 @@ def campaign(
         list[str] | None, typer.Option(help="KEY=V1,V2: sweep a scenario field (repeatable).")
     ] = None,
     json_path: Annotated[Path | None, typer.Option("--json", help="Write the summary.")] = None,
-) -> None:
+    generate: Annotated[
+        int | None,
+        typer.Option(min=1, help="Generate this many scenarios from the space and judge the "
+                     "invariants (instead of named scenarios)."),
+    ] = None,
+    seed: Annotated[int, typer.Option(min=0, help="--generate: the generator's seed.")] = 1,
+    space: Annotated[
+        Path | None, typer.Option(help="--generate: the space file (default: the ring's).")
+    ] = None,
+    out: Annotated[
+        Path | None,
+        typer.Option(help="--generate: where the files go (default .ato/generated/seed-S)."),
+    ] = None,
+    shrink_runs: Annotated[
+        int, typer.Option(min=0, help="--generate: runs allowed to shrink each invariant's "
+                          "first failure.")
+    ] = 12,
+) -> None:  # fmt: skip
     """Scenarios × seeds × variations in lockstep over worker processes; a summary table. Exit
-    1 if a run crashed or ended unsafe (overspeed beyond the EBI, EoA passed, obstacle reached)."""
-    from deploy.scenario.console import campaign_from_cli
+    1 if a run crashed or ended unsafe (overspeed beyond the EBI, EoA passed, obstacle reached).
+    With --generate N: N scenarios drawn from a space, judged by the invariants, each
+    invariant's first failure shrunk; exit 1 on any violation."""
+    from deploy.scenario.console import campaign_from_cli, generated_campaign_from_cli
 
+    if generate is not None:
+        if scenarios:
+            raise typer.BadParameter("--generate draws its scenarios: name none")
+        raise typer.Exit(generated_campaign_from_cli(
+            generate, seed=seed, space_path=space, out_dir=out, workers=workers,
+            shrink_runs=shrink_runs, json_path=json_path,
+        ))  # fmt: skip
     raise typer.Exit(campaign_from_cli(
         scenarios or [], seeds=seeds, first_seed=first_seed, workers=workers, vary=vary or [],
         json_path=json_path,

@@ -37,6 +37,7 @@ __all__ = [
     "Cell",
     "CellResult",
     "Variation",
+    "distribution",
     "parse_variation",
     "run_campaign",
     "summarise",
@@ -207,7 +208,7 @@ def _stop_values(kpis: dict[str, Any] | None, key: str) -> list[float]:
     return [float(stop[key]) for stop in kpis.get("stops", []) if stop.get(key) is not None]
 
 
-def _distribution(values: list[float]) -> dict[str, float] | None:
+def distribution(values: list[float]) -> dict[str, float] | None:
     finite = np.asarray([v for v in values if math.isfinite(v)])
     if finite.size == 0:
         return None
@@ -233,7 +234,7 @@ def summarise(results: Sequence[CellResult]) -> dict[str, Any]:
             "crashed": len(group) - len(ran),
             "unsafe": sum(1 for r in ran if r.unsafe),
             "kpis": {
-                path: _distribution(
+                path: distribution(
                     [
                         v
                         for r in ran
@@ -243,7 +244,7 @@ def summarise(results: Sequence[CellResult]) -> dict[str, Any]:
                 for path in HEADLINE_KPIS
             }
             | {
-                f"stops.{key}.abs": _distribution(
+                f"stops.{key}.abs": distribution(
                     [abs(v) for r in ran for v in _stop_values(r.kpis, key)]
                 )
                 for key in STOP_KPIS

@@ -20,7 +20,14 @@ vc_decay           bool    the Vital Control is in System Decay
 journey_accepted   bool    a journey profile is accepted on board
 journey_ended      bool    the end of the journey is reached
 etcs_braked        bool    ETCS has commanded a service or emergency brake in this run
+next_stop          word    the journey's timing point the train runs to next (``none``)
+eoa_distance_m     number  ETCS's distance to its end of authority (inf without one) [m]
 =================  ======  ===============================================================
+
+``next_stop`` with ``position_m`` places an event exactly relative to the train
+(``next_stop == tp2-south and position_m >= 2600``: once in the leg to that timing point, at that
+chainage), which simulated time cannot: the generator of ``deploy.scenario.generate`` puts its
+TSRs and MA shortenings so.
 """
 
 from __future__ import annotations
@@ -49,6 +56,8 @@ FIELDS: dict[str, type] = {
     "journey_accepted": bool,
     "journey_ended": bool,
     "etcs_braked": bool,
+    "next_stop": str,
+    "eoa_distance_m": float,
 }
 _OPERATORS: dict[str, Callable[[Any, Any], bool]] = {
     "==": operator.eq,

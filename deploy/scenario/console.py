@@ -184,3 +184,75 @@ def _min_margin(results: list[Any], name: str) -> str:
     margins = [r.kpis["min_eoa_margin_m"] for r in results if r.cell.scenario == name
                and r.kpis is not None and r.kpis.get("min_eoa_margin_m") is not None]  # fmt: skip
     return f"{min(margins):.2f}" if margins else "—"
+
+
+def generated_campaign_from_cli(
+    count: int, *, seed: int, space_path: Path | None, out_dir: Path | None, workers: int,
+    shrink_runs: int, json_path: Path | None,
+) -> int:  # fmt: skip
+    """Generate, run, judge, shrink and print; 0 when no invariant is violated, 1 otherwise,
+    2 when the space cannot be used."""
+    from deploy.scenario.generate import default_out_dir
+    from deploy.scenario.generated import run_generated, summarise_generated
+    from deploy.scenario.space import SpaceFileError, load_space
+
+    console = Console(stderr=True)
+    try:
+        space = load_space(space_path)
+    except SpaceFileError as exc:
+        console.print(f"[red]{exc}[/red]", markup=False, highlight=False)
+        return 2
+    out = out_dir or default_out_dir(seed)
+    console.print(f"generating {count} scenarios (space {space.name}, seed {seed}) into {out}/")
+    with Progress(TextColumn("[bold]campaign"), BarColumn(), TextColumn("{task.completed}/"
+                  "{task.total}"), TimeElapsedColumn(), console=console) as bar:  # fmt: skip
+        task = bar.add_task("campaign", total=count)
+        done = [0]
+
+        def finished(result: Any) -> None:
+            done[0] += 1
+            bar.console.print(f"[{done[0]}/{count}] {_result_line(result)}",
+                              markup=False, highlight=False, soft_wrap=True)  # fmt: skip
+            bar.advance(task)
+
+        campaign = run_generated(
+            space, count=count, seed=seed, out_dir=out, workers=workers,
+            shrink_runs=shrink_runs, on_result=finished,
+            on_shrink=lambda text: bar.console.print(text, markup=False, highlight=False),
+        )  # fmt: skip
+    summary = summarise_generated(campaign, seed=seed, space=space.name)
+    _print_generated(summary)
+    if json_path is not None:
+        from deploy.scenario.campaign import write_summary
+
+        write_summary(summary, json_path)
+        console.print(f"summary written to {json_path}")
+    return 0 if summary["violations"] == 0 else 1
+
+
+def _print_generated(summary: dict[str, Any]) -> None:
+    out = Console()
+    failures = Table(title=f"generated: {summary['runs']} runs, {summary['violations']} with an "
+                     "invariant violated")  # fmt: skip
+    for column in ("invariant", "runs violating", "first", "shrunk (runs: steps)"):
+        failures.add_column(column)
+    for name, entry in summary["invariants"].items():
+        shrunk = entry["shrunk"]
+        text = "—" if shrunk is None else (
+            f"{shrunk['file']} ({shrunk['runs']}: {'; '.join(shrunk['steps']) or 'none kept'})"
+        )  # fmt: skip
+        failures.add_row(name, str(entry["count"]), Path(entry["first"]).stem, text)
+    out.print(failures)
+    kpis = Table(title="KPI distributions (over every stop, or every run)")
+    for column in ("KPI", "median", "p99", "max"):
+        kpis.add_column(column)
+    for key, stats in summary["distributions"].items():
+        cells = (
+            ["—"] * 3 if stats is None else [f"{stats[k]:.3f}" for k in ("median", "p99", "max")]
+        )
+        kpis.add_row(key, *cells)
+    out.print(kpis)
+    for cell in summary["cells"]:
+        for violation in cell["violations"]:
+            out.print(f"  {Path(cell['scenario']).stem}: {violation['invariant']}: "
+                      f"{violation['detail']}", markup=False, highlight=False)  # fmt: skip

@@ -41,6 +41,7 @@ from deploy.bench.vc_runner import run_scenario as run_vc_scenario
 from deploy.link_proxy import LinkProxy
 from deploy.ports import loopback_endpoint
 from deploy.scenario.conditions import State
+from deploy.scenario.invariants import invariant_expectations
 from deploy.scenario.kpis import (
     RunCounters,
     check_expectations,
@@ -270,6 +271,8 @@ class _Stack:
         self.operator_present = spec.operator.simulated
         self.recorder = TelemetryRecorder(node)
         self.recorder.register()
+        if spec.journey is not None and spec.journey.max_speed_kmh is not None:
+            self.recorder.cap_mps = spec.journey.max_speed_kmh * MPS_PER_KMH
         self.recorder.hazards_s.extend(
             fault.start_s
             for fault in spec.faults
@@ -391,7 +394,7 @@ class _Stack:
             state = self.state()
             if end_when is not None and end_when(state):
                 break
-            self._faults(node.clock.now_s)
+            self._faults(node.clock.now_s, state)
             if not self._act(state):
                 break
             self._answer_vc()
@@ -440,9 +443,12 @@ class _Stack:
         vital = stack.vital
         driving = stack.driving
         standstill = plant.speed_mps / MPS_PER_KMH < STANDSTILL_KMH
-        ended = (
-            driving.journey is not None and driving.next_stop(plant.position_m) is None
-            and standstill
+        next_stop = None if driving.journey is None else driving.next_stop(plant.position_m)
+        ended = driving.journey is not None and next_stop is None and standstill
+        etcs = stack.etcs.output
+        eoa_distance_m = (
+            math.inf if etcs is None or etcs.end_of_authority_distance_m is None
+            else etcs.end_of_authority_distance_m
         )  # fmt: skip
         return {
             "time_s": node.clock.now_s,
@@ -460,11 +466,13 @@ class _Stack:
                 stack.etcs.service_brake_interventions + stack.etcs.emergency_brake_interventions
             )
             > 0,
+            "next_stop": "none" if next_stop is None else next_stop.timing_point_id,
+            "eoa_distance_m": eoa_distance_m,
         }
 
     # -- faults --------------------------------------------------------------------------------
 
-    def _faults(self, now_s: float) -> None:
+    def _faults(self, now_s: float, state: State) -> None:
         present = self.spec.operator.simulated
         internal_fault = False
         adhesion = 1.0
@@ -483,12 +491,12 @@ class _Stack:
             elif isinstance(fault, FrictionDrop) and fault.start_s <= now_s < fault.end_s:
                 adhesion = min(adhesion, fault.factor)
             elif isinstance(fault, Obstacle | ShortenedAuthority | TracksideRestart):
-                if index not in self._done and now_s >= fault.at_s:
+                if index not in self._done and _fault_due(fault, now_s, state):
                     self._done.add(index)
                     self.recorder.hazards_s.append(now_s)
                     self._inject(fault)
             elif isinstance(fault, TemporarySpeedRestriction):
-                if index not in self._done and now_s >= fault.at_s:
+                if index not in self._done and _fault_due(fault, now_s, state):
                     self._done.add(index)
                     self._speed_restriction(f"tsr-{index + 1}", fault)
         self._zenoh_link(link_lost)
@@ -772,6 +780,10 @@ class _Stack:
         kpis.update(
             scenario=self.spec.name, seed=self.seed, sim_time_s=node.clock.now_s,
             min_eoa_margin_m=_finite(recorder.maxima.eoa_margin_m),
+            max_speed_over_cap_kmh=(
+                None if recorder.cap_mps is None
+                else max(recorder.maxima.over_cap_mps, 0.0) / MPS_PER_KMH
+            ),
             min_obstacle_margin_m=_finite(recorder.maxima.obstacle_margin_m),
             sensor_lost_s=dict(recorder.sensor_lost_s),
             odometer_failure_detection_s=self._odometer_detection_s(),
@@ -797,6 +809,8 @@ class _Stack:
         expectations = check_expectations(kpis, self.spec.expect)
         expectations += [{"name": failure, "ok": False, "detail": failure}
                          for failure in self.failures]  # fmt: skip
+        if self.spec.invariants is not None:
+            expectations += invariant_expectations(self.spec, kpis)
         kpis["expectations"] = expectations
         kpis["passed"] = all(item["ok"] for item in expectations)
         return RunOutcome(_ordered_keys(kpis), columns)
@@ -834,6 +848,17 @@ def _wait(
             return condition()
         time.sleep(0.0005)
     return True
+
+
+def _fault_due(
+    fault: Obstacle | ShortenedAuthority | TracksideRestart | TemporarySpeedRestriction,
+    now_s: float, state: State,
+) -> bool:  # fmt: skip
+    """A one-shot fault's time has come and its condition (if any) holds."""
+    if fault.at_s is not None and now_s < fault.at_s:
+        return False
+    condition = getattr(fault, "condition", None)
+    return condition is None or bool(condition.holds(state))
 
 
 def _finite(value: float) -> float | None:

@@ -23,6 +23,7 @@ __all__ = [
     "Action",
     "Expectation",
     "Fault",
+    "InvariantSettings",
     "JourneySpec",
     "OperatorSpec",
     "ScenarioSpec",
@@ -194,15 +195,41 @@ class Obstacle(_Model):
     position_m: float = Field(ge=0.0, allow_inf_nan=False, description="Chainage [m]")
 
 
-class ShortenedAuthority(_Model):
+class _Triggered(_Model):
+    """A one-shot fault injected once ``at_s`` has come and ``when`` holds (either may be left
+    out, not both): ``when`` places it exactly relative to the train (``next_stop == tp2-south
+    and position_m >= 2600``)."""
+
+    at_s: Seconds | None = None
+    """Not before this simulated time [s]."""
+    when: str | None = None
+    """A condition on the vehicle's state (see ``deploy.scenario.conditions``)."""
+
+    @field_validator("when")
+    @classmethod
+    def _condition(cls, when: str | None) -> str | None:
+        if when is not None:
+            parse_condition(when)
+        return when
+
+    @model_validator(mode="after")
+    def _triggered(self) -> _Triggered:
+        if self.at_s is None and self.when is None:
+            raise ValueError("give at_s, when, or both")
+        return self
+
+    @property
+    def condition(self) -> Condition | None:
+        return None if self.when is None else parse_condition(self.when)
+
+
+class ShortenedAuthority(_Triggered):
     kind: Literal["ma_shortened"]
-    at_s: Seconds
     end_of_authority_m: float = Field(ge=0.0, allow_inf_nan=False, description="Chainage [m]")
 
 
-class TemporarySpeedRestriction(_Model):
+class TemporarySpeedRestriction(_Triggered):
     kind: Literal["tsr"]
-    at_s: Seconds
     start_m: float = Field(ge=0.0, allow_inf_nan=False)
     end_m: float = Field(gt=0.0, allow_inf_nan=False)
     speed_kmh: float = Field(gt=0.0, le=360.0, allow_inf_nan=False)
@@ -244,6 +271,29 @@ class Expectation(_Model):
     name: str | None = None
 
 
+InvariantName = Literal["overspeed_mrsp", "overspeed_cap", "eoa_passed", "etcs_intervention",
+                        "vc_eb", "stop_missed", "nmpc_unbounded", "crash"]  # fmt: skip
+"""The invariants of ``deploy.scenario.invariants``."""
+
+
+class InvariantSettings(_Model):
+    """The invariants of ``deploy.scenario.invariants`` judged on the run's KPIs, each violation
+    a failed expectation (generated scenarios carry them, so that ``ato run FILE`` judges a run
+    as the campaign did)."""
+
+    max_stop_error_m: float = Field(default=0.5, gt=0.0, le=100.0, allow_inf_nan=False)
+    """A journey stop is served when the train stands this close to it [m]."""
+    overspeed_tolerance_kmh: float = Field(default=0.0, ge=0.0, le=10.0, allow_inf_nan=False)
+    """How far above the MRSP or the journey's cap the true speed may go [km/h]."""
+    nmpc_max_ms: float = Field(default=20.0, gt=0.0, allow_inf_nan=False)
+    """The longest NMPC solve allowed [ms, wall time]."""
+    vigilance_answer_s: float = Field(default=10.0, gt=0.0, allow_inf_nan=False)
+    """An operator unseen this long (reaction included) misses a vigilance request [s]: an
+    absent operator or a lost link that long asks for the VC's EB."""
+    skip: tuple[InvariantName, ...] = ()
+    """Invariants not judged (by name)."""
+
+
 class VcCatalogueSpec(_Model):
     """Run one scenario of the Vital Control catalogue (``deploy.bench.vc_catalogue``) instead of
     the whole stack: the VC with its emulated I/O on the catalogue's scripted train."""
@@ -269,6 +319,7 @@ class ScenarioSpec(_Model):
     faults: tuple[Fault, ...] = ()
     expect: tuple[Expectation, ...] = ()
     vc: VcCatalogueSpec | None = None
+    invariants: InvariantSettings | None = None
 
     @field_validator("end_when")
     @classmethod

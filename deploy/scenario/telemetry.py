@@ -64,6 +64,8 @@ class _Maxima:
     """Least distance from the true front end to the obstacle [m] (< 0: reached)."""
     outside_interval_m: float = 0.0
     """Furthest the true front end was outside ETCS's confidence interval [m] (0: never)."""
+    over_cap_mps: float = -math.inf
+    """Most the true speed exceeded the journey's cap while driving in AD [m/s]."""
 
 
 @dataclass
@@ -93,6 +95,8 @@ class TelemetryRecorder:
     maxima: _Maxima = field(default_factory=_Maxima)
     obstacle_m: float | None = None
     """An obstacle's position in the plant's coordinate (unwrapped), once there is one [m]."""
+    cap_mps: float | None = None
+    """The journey's speed cap, when it has one [m/s]."""
     sensor_lost_s: dict[str, float] = field(default_factory=dict)
     """When the localisation first reported each sensor (imu, odometer, gps) not alive [s]."""
     hazards_s: list[float] = field(default_factory=list)
@@ -117,6 +121,8 @@ class TelemetryRecorder:
         overspeed = plant.speed_mps - track_map.mrsp_mps(chainage)
         maxima = self.maxima
         maxima.overspeed_mps = max(maxima.overspeed_mps, overspeed)
+        if self.cap_mps is not None and node.stack.driving.state.value == "AD":
+            maxima.over_cap_mps = max(maxima.over_cap_mps, plant.speed_mps - self.cap_mps)
         etcs = node.stack.etcs.output
         if etcs is not None and etcs.end_of_authority_distance_m is not None:
             eoa_m = etcs.odometry.estimated_front_m + etcs.end_of_authority_distance_m

@@ -1,0 +1,140 @@
+"""``ato campaign --generate N --seed S``: generate, run, judge the invariants, shrink failures.
+
+The N scenarios of seed S are drawn from the space (``deploy.scenario.space``) and written as
+scenario files (``gen-<S>-<index>.toml``); each runs as a cell of the campaign
+(``deploy.scenario.campaign``) with its own run seed, and its KPIs are judged by the invariants
+(``deploy.scenario.invariants``). For the first failing scenario of each invariant the shrinker
+(``deploy.scenario.shrink``) looks for a simpler one that fails the same way, and writes it
+beside the others as ``<name>-shrunk.toml``. The summary adds, to the campaign's, the failures
+by invariant and the distributions of the stop error, the arrival error, the NMPC's p99 and
+max solve time and the traction energy over every run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from deploy.scenario.campaign import Cell, CellResult, distribution, run_campaign, summarise
+from deploy.scenario.generate import Draw, draw, write_scenario
+from deploy.scenario.invariants import INVARIANTS, Violation, judge
+from deploy.scenario.loader import load_scenario
+from deploy.scenario.schema import InvariantName, ScenarioSpec
+from deploy.scenario.shrink import ShrinkResult, shrink
+from deploy.scenario.space import GeneratorSpace
+from deploy.scenario.toml_out import scenario_toml
+
+__all__ = ["GeneratedCampaign", "kpi_distributions", "run_generated", "summarise_generated"]
+
+DISTRIBUTIONS = ("stop_error_m.abs", "arrival_error_s.abs", "nmpc_ms.p99", "nmpc_ms.max",
+                 "traction_energy_kwh")  # fmt: skip
+"""The KPI distributions of the summary: per stop for the first two, per run for the rest."""
+
+
+@dataclass(frozen=True)
+class GeneratedCampaign:
+    results: list[CellResult]
+    specs: dict[str, ScenarioSpec]
+    """By file path (the cells' scenario)."""
+    violations: dict[str, list[Violation]]
+    """By file path."""
+    shrunk: dict[InvariantName, tuple[Path, ShrinkResult]]
+
+
+def _judged(spec: ScenarioSpec, result: CellResult) -> list[Violation]:
+    return judge(spec, result.kpis, error=result.error)
+
+
+def run_spec_in_worker(spec: ScenarioSpec, directory: Path) -> CellResult:
+    """One run of ``spec`` in a spawned worker process (as a campaign's cell), via its file."""
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / f"{spec.name}.toml"
+    path.write_text(scenario_toml(spec), encoding="utf-8")
+    return run_campaign([Cell(str(path), spec.seed)], workers=1)[0]
+
+
+def run_generated(
+    space: GeneratorSpace, *, count: int, seed: int, out_dir: Path, workers: int,
+    shrink_runs: int = 12, on_result: Callable[[CellResult], None] | None = None,
+    on_shrink: Callable[[str], None] | None = None,
+) -> GeneratedCampaign:  # fmt: skip
+    """Generate, run, judge and shrink; every file is written under ``out_dir``."""
+    drawn: dict[str, Draw] = {}
+    specs: dict[str, ScenarioSpec] = {}
+    for index in range(count):
+        item = draw(space, seed, index)
+        path = str(write_scenario(space, item, out_dir))
+        drawn[path], specs[path] = item, load_scenario(path)
+    cells = [Cell(path, spec.seed) for path, spec in specs.items()]
+    results = run_campaign(cells, workers=workers, on_result=on_result)
+    violations = {r.cell.scenario: _judged(specs[r.cell.scenario], r) for r in results}
+    shrunk: dict[InvariantName, tuple[Path, ShrinkResult]] = {}
+    for invariant in INVARIANTS:
+        failing = [path for path in specs if any(v.invariant == invariant
+                                                 for v in violations[path])]  # fmt: skip
+        first = failing[0] if failing else None
+        if first is None or shrink_runs <= 0:
+            continue
+        if on_shrink is not None:
+            on_shrink(f"shrinking {Path(first).stem} ({invariant})")
+
+        def run(spec: ScenarioSpec) -> list[Violation]:
+            return _judged(spec, run_spec_in_worker(spec, out_dir / "shrink"))
+
+        result = shrink(space, drawn[first], invariant, run, max_runs=shrink_runs,
+                        violations=violations[first])  # fmt: skip
+        target = write_scenario(space, result.draw, out_dir)
+        shrunk[invariant] = (target, result)
+    return GeneratedCampaign(results, specs, violations, shrunk)
+
+
+def _values(results: Sequence[CellResult], key: str) -> list[float]:
+    if key.endswith(".abs"):
+        name = key.removesuffix(".abs")
+        return [abs(float(stop[name])) for r in results if r.kpis is not None
+                for stop in r.kpis.get("stops", []) if stop.get(name) is not None]  # fmt: skip
+    head, _, member = key.partition(".")
+    found = []
+    for r in results:
+        value: Any = None if r.kpis is None else r.kpis.get(head)
+        if member and isinstance(value, dict):
+            value = value.get(member)
+        if isinstance(value, int | float) and not isinstance(value, bool):
+            found.append(float(value))
+    return found
+
+
+def kpi_distributions(results: Sequence[CellResult]) -> dict[str, dict[str, float] | None]:
+    """Median, p99 and max of each of :data:`DISTRIBUTIONS` over the runs."""
+    return {key: distribution(_values(results, key)) for key in DISTRIBUTIONS}
+
+
+def summarise_generated(campaign: GeneratedCampaign, *, seed: int, space: str) -> dict[str, Any]:
+    """The campaign's summary with the invariants: failures by invariant, each with its first
+    failing scenario and its shrunk file; the KPI distributions; each cell's violations."""
+    summary = summarise(campaign.results)
+    by_invariant: dict[str, Any] = {}
+    for invariant in INVARIANTS:
+        failing = [path for path, found in campaign.violations.items()
+                   if any(v.invariant == invariant for v in found)]  # fmt: skip
+        if not failing:
+            continue
+        entry: dict[str, Any] = {"count": len(failing), "scenarios": failing,
+                                 "first": failing[0], "shrunk": None}  # fmt: skip
+        if invariant in campaign.shrunk:
+            path, result = campaign.shrunk[invariant]
+            entry["shrunk"] = {"file": str(path), "runs": result.runs,
+                               "steps": list(result.steps)}  # fmt: skip
+        by_invariant[invariant] = entry
+    summary.update(
+        generated={"seed": seed, "space": space, "count": len(campaign.specs)},
+        violations=sum(1 for found in campaign.violations.values() if found),
+        invariants=by_invariant,
+        distributions=kpi_distributions(campaign.results),
+    )
+    for cell in summary["cells"]:
+        cell["violations"] = [{"invariant": v.invariant, "detail": v.detail}
+                              for v in campaign.violations.get(cell["scenario"], [])]  # fmt: skip
+    return summary

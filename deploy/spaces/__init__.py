@@ -1,0 +1,1 @@
+"""Generator spaces: what ``ato campaign --generate`` draws scenarios from (docs/scenarios.md)."""
