@@ -20,7 +20,8 @@ vc_eb              ``vc_eb_count`` > 0 and no fault of the scenario asks for it
                    (:func:`faults_asking_for_vc_eb`)
 stop_missed        a stopping timing point of the journey not served within
                    ``max_stop_error_m``, without a documented reason (:func:`excused_stops`)
-nmpc_unbounded     ``nmpc_failures`` > 0, or ``nmpc_ms.max`` > ``nmpc_max_ms``
+nmpc_unbounded     ``nmpc_fallback_s`` > ``nmpc_max_fallback_s``, or ``nmpc_ms.max`` >
+                   ``nmpc_max_ms`` when that is set
 crash              the run raised
 =================  ============================================================================
 """
@@ -173,12 +174,13 @@ def _stop_missed(spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) ->
 def _nmpc_unbounded(_spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) -> list[str]:
     found = []
     failures = kpis.get("nmpc_failures") or 0
-    if failures > 0:
-        fallback = kpis.get("nmpc_fallback_s") or 0.0
-        found.append(f"{failures} NMPC failures ({fallback:.1f} s on the fallback)")
+    fallback = kpis.get("nmpc_fallback_s") or 0.0
+    if fallback > settings.nmpc_max_fallback_s:
+        found.append(f"{failures} NMPC failures: {fallback:.1f} s on the fallback law "
+                     f"(bound {settings.nmpc_max_fallback_s:g} s)")  # fmt: skip
     solve = kpis.get("nmpc_ms") or {}
     longest = solve.get("max")
-    if longest is not None and longest > settings.nmpc_max_ms:
+    if longest is not None and settings.nmpc_max_ms is not None and longest > settings.nmpc_max_ms:
         found.append(f"NMPC solve of {longest:.1f} ms (bound {settings.nmpc_max_ms:g} ms)")
     return found
 

@@ -45,6 +45,9 @@ class RunCounters:
     regen_energy_j: float
     max_overspeed_mps: float
     nmpc_solve_times_s: Sequence[float]
+    nmpc_failures: int
+    """Solves that failed into the fallback law, each for one control step."""
+    nmpc_step_s: float
     force_range_n: float
     """u_max − u_min of the vehicle, for the switch jump's fraction [N]."""
 
@@ -122,6 +125,8 @@ def compute_kpis(
             "max": float(errors.max()) if errors.size else 0.0,
         },
         "nmpc_ms": _percentiles_ms(counters.nmpc_solve_times_s),
+        "nmpc_failures": counters.nmpc_failures,
+        "nmpc_fallback_s": counters.nmpc_failures * counters.nmpc_step_s,
         "vc_interventions": list(vc_interventions),
         "max_wheel_slip_mps": _finite_max(columns.get("wheel_slip_mps")),
         "etcs_estimate_error_m": _error_kpi(columns, "etcs_position_m"),

@@ -212,7 +212,8 @@ def _run_vc(spec: ScenarioSpec, seed: int) -> RunOutcome:
         "system_decay": result.decay_s is not None, "traction_energy_kwh": 0.0,
         "regen_energy_kwh": 0.0, "max_jerk_mps3": 0.0, "ad_speed_rms_kmh": None,
         "rd_speed_rms_kmh": None, "max_switch_du_frac": None,
-        "position_error_m": {"rms": 0.0, "max": 0.0}, "nmpc_ms": None,
+        "position_error_m": {"rms": 0.0, "max": 0.0}, "nmpc_ms": None, "nmpc_failures": 0,
+        "nmpc_fallback_s": 0.0,
         "vc_interventions": _vc_interventions(result),
         "vc_outcome": result.outcome.value, "vc_expected_outcome": result.expected.value,
         "vc_decay_reasons": list(result.decay_reasons),
@@ -757,6 +758,8 @@ class _Stack:
             regen_energy_j=float(getattr(plant, "regen_energy_j", 0.0)),
             max_overspeed_mps=max(recorder.maxima.overspeed_mps, 0.0),
             nmpc_solve_times_s=stack.driving.nmpc.stats.solve_times_s,
+            nmpc_failures=stack.driving.nmpc.stats.failures,
+            nmpc_step_s=stack.driving.nmpc.config.step_s,
             force_range_n=high - low,
         )  # fmt: skip
         stops = [

@@ -285,8 +285,13 @@ class InvariantSettings(_Model):
     """A journey stop is served when the train stands this close to it [m]."""
     overspeed_tolerance_kmh: float = Field(default=0.0, ge=0.0, le=10.0, allow_inf_nan=False)
     """How far above the MRSP or the journey's cap the true speed may go [km/h]."""
-    nmpc_max_ms: float = Field(default=20.0, gt=0.0, allow_inf_nan=False)
-    """The longest NMPC solve allowed [ms, wall time]."""
+    nmpc_max_fallback_s: float = Field(default=2.0, ge=0.0, allow_inf_nan=False)
+    """How long the NMPC's fallback law may drive in a run [s]: a solve that fails (no feasible
+    iterate within the iteration caps) hands one control step to it."""
+    nmpc_max_ms: float | None = Field(default=None, gt=0.0, allow_inf_nan=False)
+    """The longest NMPC solve allowed [ms, wall time]; not judged when absent. The solve is
+    bounded by construction (iteration caps); a wall-time bound holds only on an idle machine
+    (a campaign's workers share the cores, and a preempted solve counts the wait)."""
     vigilance_answer_s: float = Field(default=10.0, gt=0.0, allow_inf_nan=False)
     """An operator unseen this long (reaction included) misses a vigilance request [s]: an
     absent operator or a lost link that long asks for the VC's EB."""

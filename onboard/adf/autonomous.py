@@ -1,12 +1,12 @@
 """Autonomous driving (AD): the NMPC following the ODP along the line.
 
 Builds the NMPC's per-stage reference from the plan: p_ref and v_ref at each step of the horizon;
-the speed ceiling v_max from the MRSP around the reference position (never above it; the
-journey's cap is the reference's business, so that the NMPC keeps room to catch up), lowered to
-the ETCS permitted speed when the ATO-OB sets it (the EoA is the plan's: the ADF replans to stop
-before it); and the track forces (gradient and curve) at the reference position, as the seed's
-control-oriented model takes them. At standstill at a stop, with the reference at rest, the
-brake holds the vehicle.
+the speed ceiling v_max from the MRSP around the reference position (never above it) and the
+journey's cap (a hard constraint, as the MRSP: the plan holds a small margin under both, which
+is the NMPC's room to catch up), lowered to the ETCS permitted speed when the ATO-OB sets it
+(the EoA is the plan's: the ADF replans to stop before it); and the track forces (gradient and
+curve) at the reference position, as the seed's control-oriented model takes them. At
+standstill at a stop, with the reference at rest, the brake holds the vehicle.
 """
 
 from __future__ import annotations
@@ -67,6 +67,8 @@ class AutonomousDriving:
         around = np.add.outer(np.array(positions), CEILING_WINDOW_M)
         ceilings = track_map.mrsp_ahead_mps(origin, around).min(axis=1)
         ceilings = np.minimum(ceilings, self.permitted_speed_mps)
+        if self.plan.cap_mps is not None:
+            ceilings = np.minimum(ceilings, self.plan.cap_mps)
         if speed_mps is not None:
             # A ceiling the vehicle is already above (a permitted speed that drops at once, an
             # overshoot) it can meet only after braking: held at what full braking reaches.

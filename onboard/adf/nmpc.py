@@ -13,8 +13,18 @@ increments Δu (multiple shooting, one RK4 step per interval). Without the lag i
 braking phase of a few seconds, as at the end of a coasting leg, starts τ late and overshoots the
 stop by about τ·v. The NLP is built once with casadi and solved by ``sqpmethod`` with the
 ``qrqp`` QP solver, warm-started from the previous solution shifted by one step (from a rollout
-of the model when cold); IPOPT can be chosen for comparison. A failed solve falls back to a safe
-action, the rest of the previous feasible plan or else full service braking, and is counted.
+of the model when cold, and when the reference or the ceiling jumps: a TSR, a replanned leg, a
+new permitted speed); IPOPT can be chosen for comparison.
+
+The solve time is bounded by construction: at most ``max_iterations`` SQP iterations of at most
+``max_qp_iterations`` QP iterations each. Near an active constraint (cruising just under a
+ceiling) the SQP's primal residual can stall at about 1e-5 without meeting a tighter tolerance,
+so the tolerances are 1e-4 in the NLP's units (m, m/s, kN: a tenth of a millimetre, of a mm/s, of
+a newton); an iterate that did not converge but meets every constraint within 1e-2 is used
+(counted as not converged). Otherwise the step falls back to a safe control law, counted as a
+failure: full service braking above the ceiling, else a proportional speed law onto the lower of
+the reference and the ceiling, with the resistance and track forces fed forward; its demand
+changes at most by the NMPC's own rate bound a step.
 """
 
 from __future__ import annotations
@@ -27,7 +37,7 @@ import casadi as ca
 import numpy as np
 import numpy.typing as npt
 
-from onboard.plant.point_mass import PointMassParameters
+from onboard.plant.point_mass import MIN_POWER_SPEED_MPS, PointMassParameters
 
 __all__ = ["NmpcConfig", "NmpcController", "NmpcReference", "NmpcResult", "NmpcStats"]
 
@@ -60,7 +70,21 @@ class NmpcConfig:
     where the real one stops; a hard v ≥ 0 would make stopping on the brake infeasible within
     the force-rate bound, so a small negative predicted speed stands for standing still."""
     solver: Literal["sqpmethod", "ipopt"] = "sqpmethod"
-    max_iterations: int = 20
+    max_iterations: int = 10
+    """SQP iterations; a warm-started solve takes one or two."""
+    max_qp_iterations: int = 50
+    """QP iterations in each SQP iteration (qrqp)."""
+    tolerance: float = 1e-4
+    """Primal and dual tolerance of the SQP, in the NLP's units (m, m/s, kN)."""
+    feasibility_tolerance: float = 1e-2
+    """Largest constraint violation of a non-converged iterate that is still used (in the NLP's
+    units: 1 cm/s over a ceiling somewhere in the horizon, 10 N of a dynamics defect); only its
+    first step is applied, and the next solve starts from the measured state again."""
+    jump_mps: float = 1.0
+    """A reference or ceiling that differs from the previous one (shifted a step) by more than
+    this at some stage is a jump: the next solve starts cold."""
+    fallback_gain_per_s: float = 0.5
+    """The fallback law's speed gain: the acceleration demanded per m/s of speed error [1/s]."""
 
 
 @dataclass(frozen=True)
@@ -88,6 +112,11 @@ class NmpcResult:
 class NmpcStats:
     solves: int = 0
     failures: int = 0
+    """Solves whose step was the fallback law's."""
+    not_converged: int = 0
+    """Solves that hit an iteration cap with a feasible iterate, which was used."""
+    cold_starts: int = 0
+    """Solves started from a rollout: after a reset, a failure or a jump of the reference."""
     solve_times_s: list[float] = field(default_factory=list)
 
 
@@ -102,9 +131,9 @@ class NmpcController:
         self._solver, self._bounds = self._build()
         n = self.config.horizon_steps
         self._guess: FloatArray | None = None
-        self._plan: FloatArray = np.zeros(0)
         self._variables = STATE_SIZE * (n + 1) + n
         self._demand_n: float | None = None
+        self._reference: NmpcReference | None = None
 
     def _dynamics(self) -> ca.Function:
         m = self.model
@@ -182,8 +211,8 @@ class NmpcController:
     def reset(self) -> None:
         """Forget the warm start and the previous plan (after a mode change)."""
         self._guess = None
-        self._plan = np.zeros(0)
         self._demand_n = None
+        self._reference = None
 
     def solve(
         self, *, position_m: float, speed_mps: float, applied_force_n: float,
@@ -199,28 +228,64 @@ class NmpcController:
             [state, reference.position_m - position_m, reference.speed_mps,
              reference.max_speed_mps, reference.track_force_n / KN]
         )  # fmt: skip
+        if self._jumped(reference):
+            self._guess = None
+        self._reference = reference
         started = time.perf_counter()
         try:
+            if self._guess is None:
+                self.stats.cold_starts += 1
             guess = self._initial_guess(state, reference.track_force_n / KN)
             solution = self._solver(x0=guess, p=parameters, **self._bounds)
             success = bool(self._solver.stats()["success"])
+            if not success and self._feasible(solution):
+                self.stats.not_converged += 1
+                success = True
         except RuntimeError:
             solution, success = None, False
         elapsed = time.perf_counter() - started
         self.stats.solves += 1
         self.stats.solve_times_s.append(elapsed)
         if not success or solution is None:
-            return self._fallback(elapsed)
+            return self._fallback(elapsed, speed_mps, reference)
         values = np.asarray(solution["x"], dtype=float).ravel()
         states = values[: STATE_SIZE * (n + 1)].reshape(n + 1, STATE_SIZE)
         self._guess = values
         forces_n = states[1:, 3] * KN
-        self._plan = forces_n[1:]
         self._demand_n = float(forces_n[0])
         return NmpcResult(
             force_n=float(forces_n[0]), success=True, fallback=False, solve_time_s=elapsed,
             predicted_speed_mps=states[1:, 1], predicted_force_n=forces_n,
         )  # fmt: skip
+
+    def _jumped(self, reference: NmpcReference) -> bool:
+        """Whether the reference or the ceiling moved by more than ``jump_mps`` against the
+        previous one shifted by a step (the warm start would begin far from the new optimum)."""
+        previous = self._reference
+        if previous is None:
+            return False
+        jump = self.config.jump_mps
+        for new, old in ((reference.speed_mps, previous.speed_mps),
+                         (reference.max_speed_mps, previous.max_speed_mps)):  # fmt: skip
+            if np.any(np.abs(np.minimum(new[:-1], MAX_SPEED_MPS)
+                             - np.minimum(old[1:], MAX_SPEED_MPS)) > jump):  # fmt: skip
+                return True
+        return False
+
+    def _feasible(self, solution: dict[str, Any]) -> bool:
+        """Whether a solution meets every constraint and bound within the feasibility
+        tolerance."""
+        tolerance = self.config.feasibility_tolerance
+        g = np.asarray(solution["g"], dtype=float).ravel()
+        x = np.asarray(solution["x"], dtype=float).ravel()
+        b = self._bounds
+        excess = max(
+            float(np.max(np.asarray(b["lbg"]).ravel() - g)),
+            float(np.max(g - np.asarray(b["ubg"]).ravel())),
+            float(np.max(np.asarray(b["lbx"]).ravel() - x)),
+            float(np.max(x - np.asarray(b["ubx"]).ravel())),
+        )
+        return bool(np.all(np.isfinite(x))) and excess <= tolerance
 
     def _initial_guess(self, state: FloatArray, track_kn: FloatArray) -> FloatArray:
         n = self.config.horizon_steps
@@ -244,15 +309,33 @@ class NmpcController:
         shifted_increments = np.concatenate([increments[1:], [0.0]])
         return np.concatenate([shifted_states.ravel(), shifted_increments])
 
-    def _fallback(self, elapsed: float) -> NmpcResult:
-        """The rest of the previous feasible plan, else full service braking."""
+    def _fallback(self, elapsed: float, speed_mps: float, reference: NmpcReference) -> NmpcResult:
+        """The safe control law: full service braking above the ceiling, else a proportional
+        speed law onto the lower of the reference and the ceiling, with the resistance and the
+        track force fed forward; bounded by the brake, the traction force and power."""
         self.stats.failures += 1
         self._guess = None
-        if self._plan.size:
-            force = float(self._plan[0])
-            self._plan = self._plan[1:]
+        m, ceiling = self.model, float(reference.max_speed_mps[0])
+        brake = -m.max_brake_force_n
+        if speed_mps > ceiling:
+            force = brake
         else:
-            force = -self.model.max_brake_force_n
+            target = min(float(reference.speed_mps[0]), ceiling)
+            mass = m.mass_kg * (1.0 + m.rotating_mass_factor)
+            v = max(speed_mps, 0.0)
+            resistance = m.davis_a_n + m.davis_b_n_per_mps * v + m.davis_c_n_per_mps2 * v * v
+            force = (mass * self.config.fallback_gain_per_s * (target - speed_mps)
+                     + resistance + float(reference.track_force_n[0]))  # fmt: skip
+            if target <= 0.0:
+                force = min(force, 0.0) if speed_mps > 0.0 else brake
+            traction = m.max_traction_force_n
+            if v > MIN_POWER_SPEED_MPS:
+                traction = min(traction, m.max_traction_power_w / v)
+            force = min(max(force, brake), traction)
+        if self._demand_n is not None:
+            # At the NMPC's own rate bound, from its last demand: no jerk a solve would not make.
+            step = self.config.max_force_step_n
+            force = min(max(force, self._demand_n - step), self._demand_n + step)
         self._demand_n = force
         return NmpcResult(
             force_n=force, success=False, fallback=True, solve_time_s=elapsed,
@@ -274,10 +357,17 @@ def _solver_options(config: NmpcConfig) -> dict[str, Any]:
         # convex QP, so negative eigenvalues are clipped.
         "convexify_strategy": "eigen-clip",
         "max_iter": config.max_iterations,
+        "tol_pr": config.tolerance,
+        "tol_du": config.tolerance,
         "print_header": False,
         "print_iteration": False,
         "print_time": False,
         "print_status": False,
         "error_on_fail": False,
-        "qpsol_options": {"print_iter": False, "print_header": False, "error_on_fail": False},
+        "qpsol_options": {
+            "max_iter": config.max_qp_iterations,
+            "print_iter": False,
+            "print_header": False,
+            "error_on_fail": False,
+        },
     }

@@ -38,6 +38,9 @@ __all__ = [
 COMFORT_ACCELERATION_MPS2 = 0.5
 MAX_ACCELERATION_MPS2 = 1.0
 LIMIT_SAMPLE_M = 5.0
+CAP_MARGIN_MPS = 0.2 / 3.6
+"""A plan holds this far under the journey's cap [m/s], which the NMPC holds as a hard ceiling:
+a reference on the ceiling leaves it no room to catch up and makes its NLP degenerate."""
 
 
 class InfeasibleLegError(ValueError):
@@ -187,7 +190,7 @@ def plan_legs(
         length = distance_m - depart_m
         limit = leg_speed_limit_mps(track_map, start_chainage_m + depart_m, length)
         if cap_mps is not None:
-            limit = min(limit, cap_mps)
+            limit = min(limit, cap_mps - CAP_MARGIN_MPS)
         try:
             segment = lspb_segment(
                 length, arrival_s - depart_s, speed_limit_mps=limit,

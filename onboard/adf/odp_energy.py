@@ -83,6 +83,10 @@ supervises a speed decrease on an EBD-based curve whose permitted speed runs the
 brake build-up times ahead of the emergency deceleration, from the train's max safe front end;
 a plan braking into the limit as into a stop crosses it (docs/decisions.md, "Braking into a lower
 limit")."""
+RECOVERY_BRAKING_MPS2 = MAX_BRAKING_MPS2
+"""Braking [m/s²] of a train that is faster than its envelope where a plan starts (a TSR, a
+cap or an EoA that came into force inside its braking distance, an overshoot of a limit): the
+plan brakes at this rate from the train's speed and re-enters the envelope where they meet."""
 LIMIT_REACTION_S = 6.0
 """The permitted curve of a speed decrease as the planner takes it: this long at the speed, then
 braking at :data:`LIMIT_BRAKING_MPS2` (the URV's permitted curve is about 4.3 s and 0.59 m/s²)."""
@@ -172,7 +176,8 @@ class LegTrack:
         self.model = model
         self.step_m = distance_m / steps
         self.distances_m = np.linspace(0.0, distance_m, steps + 1)
-        self.ceilings_mps = np.full(steps + 1, math.inf if cap_mps is None else cap_mps)
+        cap = math.inf if cap_mps is None else cap_mps - MRSP_MARGIN_MPS
+        self.ceilings_mps = np.full(steps + 1, cap)
         sections = track_map.mrsp_window(start_chainage_m, distance_m)
         for index, section in enumerate(sections):
             speed_mps = section.speed_mps - MRSP_MARGIN_MPS
@@ -298,13 +303,33 @@ class _Profiles:
         # Into each drop of the limits the gentler curve the ETCS permitted speed allows.
         np.minimum(envelope, track.limit_envelope_mps, out=envelope)
         if self.initial_mps > envelope[0] + SPEED_TOLERANCE_MPS:
-            raise InfeasibleLegError(
-                f"{self.initial_mps:.2f} m/s is above what braking at {track.limit_braking_mps2}"
-                f" m/s² into the limits and {track.braking_mps2} m/s² into the stop allows here"
-                f" ({envelope[0]:.2f} m/s)"
-            )
+            envelope = self._recovered(envelope)
         self._envelopes[holding_mps] = targets, envelope
         return targets, envelope
+
+    def _recovered(self, envelope: FloatArray) -> FloatArray:
+        """The envelope of a train faster than it where the leg starts: braking at
+        :data:`RECOVERY_BRAKING_MPS2` from the initial speed until that curve meets the
+        envelope, the envelope from there on.
+
+        Raises
+        ------
+        InfeasibleLegError
+            When that braking does not meet the envelope before the leg's end (the stop).
+        """
+        distances = self.track.distances_m
+        recovery_v2 = self.initial_mps**2 - 2.0 * RECOVERY_BRAKING_MPS2 * distances
+        recovery = np.sqrt(np.maximum(recovery_v2, 0.0))
+        met = np.flatnonzero(recovery <= envelope + SPEED_TOLERANCE_MPS)
+        if met.size == 0:
+            raise InfeasibleLegError(
+                f"{self.initial_mps:.2f} m/s is above what braking at {RECOVERY_BRAKING_MPS2}"
+                f" m/s² can bring down to the plan's limits within the leg's"
+                f" {self.track.distance_m:.1f} m"
+            )
+        recovered = envelope.copy()
+        recovered[: met[0]] = recovery[: met[0]]
+        return recovered
 
     def coasting_curves(self, targets: FloatArray, onset_mps: float) -> FloatArray:
         """Before each drop of the target and before the stop: the braking curve down from the

@@ -166,6 +166,42 @@ def test_replanning_from_a_moving_train_obeys_a_new_restriction() -> None:
     assert max(v for d, v in in_tsr if d > 950.0) > 30 / 3.6  # back up after it
 
 
+def test_a_tsr_inside_the_braking_distance_is_met_by_braking_and_the_plan_goes_on() -> None:
+    """A TSR of 20 km/h comes into force 40 m ahead of a train at 40 km/h, closer than the
+    planned braking into a limit allows: the new plan brakes at the recovery rate from the
+    train's speed, re-enters the envelope, and still stops at the stop (no refusal)."""
+    from onboard.adf.odp_energy import RECOVERY_BRAKING_MPS2
+
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    ring.add_temporary_speed_restriction(
+        TemporarySpeedRestriction(id="tsr-1", start_m=540.0, end_m=800.0, speed_mps=20 / 3.6)
+    )
+    plan = replan_from_state(
+        ring, URV_PARAMETERS, now_s=50.0, start_chainage_m=200.0, distance_m=300.0,
+        speed_mps=CAP_MPS, stop_distance_m=1275.0, cruise_mps=CAP_MPS,
+    )  # fmt: skip
+    assert plan.reference(50.0) == pytest.approx((300.0, CAP_MPS))
+    recovered_m = 300.0 + (CAP_MPS**2 - (20 / 3.6) ** 2) / (2 * RECOVERY_BRAKING_MPS2)
+    for t in np.arange(50.0, 90.0, 0.5):
+        distance, speed = plan.reference(float(t))
+        if distance < recovered_m:
+            # Braking at the recovery rate from the train's speed, never slower to react.
+            recovery_v2 = CAP_MPS**2 - 2 * RECOVERY_BRAKING_MPS2 * (distance - 300.0)
+            assert speed**2 == pytest.approx(recovery_v2, abs=0.2)
+        elif distance <= 600.0:
+            assert speed <= 20 / 3.6 + 1e-6  # then under the TSR through it
+    assert plan.reference(plan.end_s) == pytest.approx((1575.0, 0.0))
+
+
+def test_a_train_too_fast_to_stop_in_the_leg_is_refused() -> None:
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    with pytest.raises(InfeasibleLegError, match="within the leg"):
+        replan_from_state(
+            ring, URV_PARAMETERS, now_s=50.0, start_chainage_m=200.0, distance_m=300.0,
+            speed_mps=CAP_MPS, stop_distance_m=40.0, cruise_mps=CAP_MPS,
+        )  # fmt: skip
+
+
 @pytest.mark.parametrize("gradient_permille", [0.0, -10.0])
 def test_braking_into_a_lower_limit_stays_under_the_etcs_permitted_curve(
     gradient_permille: float,

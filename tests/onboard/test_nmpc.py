@@ -70,7 +70,8 @@ def test_prediction_respects_speed_force_and_power_limits() -> None:
         position_m=0.0, speed_mps=20.0, applied_force_n=0.0, reference=reference
     )
     assert result.success
-    assert np.all(result.predicted_speed_mps <= 25.0 + 1e-6)
+    # Within the SQP's tolerance (1e-4 m/s), the ceiling holds.
+    assert np.all(result.predicted_speed_mps <= 25.0 + NmpcConfig().tolerance)
     assert np.all(result.predicted_force_n <= URV_PARAMETERS.max_traction_force_n + 1e-6)
     power = result.predicted_force_n * result.predicted_speed_mps
     assert np.all(power <= URV_PARAMETERS.max_traction_power_w * (1 + 1e-6))
@@ -92,7 +93,7 @@ def test_a_failed_solve_without_a_plan_brakes() -> None:
     assert controller.stats.failures == 1
 
 
-def test_a_failed_solve_follows_the_previous_plan() -> None:
+def test_a_failed_solve_brakes_at_the_rate_bound_from_the_last_demand() -> None:
     controller = NmpcController(URV_PARAMETERS)
     good = controller.solve(
         position_m=0.0,
@@ -105,8 +106,40 @@ def test_a_failed_solve_follows_the_previous_plan() -> None:
         position_m=4.0, speed_mps=20.0, applied_force_n=good.force_n, reference=_infeasible()
     )
     assert failed.fallback
-    assert failed.force_n == pytest.approx(float(good.predicted_force_n[1]))
+    step = NmpcConfig().max_force_step_n
+    assert failed.force_n == pytest.approx(good.force_n - step)
     assert controller.stats.failures == 1
+
+
+def test_the_fallback_law_holds_the_reference_under_the_ceiling() -> None:
+    """A failed solve below the ceiling: a speed law onto the reference, resistance fed
+    forward; above the reference it brakes, below it drives."""
+    controller = NmpcController(URV_PARAMETERS, NmpcConfig(max_force_step_n=1e9))
+    reference = NmpcReference(np.zeros(N), np.full(N, 10.0), np.full(N, 15.0), np.zeros(N))
+    slower = controller._fallback(0.0, 8.0, reference)
+    faster = controller._fallback(0.0, 12.0, reference)
+    assert slower.fallback and slower.force_n > 0.0
+    assert faster.force_n < 0.0
+    above = controller._fallback(0.0, 16.0, reference)
+    assert above.force_n == -URV_PARAMETERS.max_brake_force_n
+    assert controller.stats.failures == 3
+
+
+def test_a_jump_of_the_reference_starts_cold() -> None:
+    """A TSR or a replan moves the ceiling at once: the warm start is dropped."""
+    controller = NmpcController(URV_PARAMETERS)
+    times = np.arange(1, N + 1) * DT
+    steady = NmpcReference(10.0 * times, np.full(N, 10.0), np.full(N, 22.0), np.zeros(N))
+    for k in range(3):
+        assert controller.solve(
+            position_m=2.0 * k, speed_mps=10.0, applied_force_n=500.0, reference=steady
+        ).success
+    assert controller.stats.cold_starts == 1
+    lowered = NmpcReference(10.0 * times, np.full(N, 10.0), np.full(N, 12.0), np.zeros(N))
+    assert controller.solve(
+        position_m=6.0, speed_mps=10.0, applied_force_n=500.0, reference=lowered
+    ).success
+    assert controller.stats.cold_starts == 2
 
 
 def test_ipopt_agrees_with_the_sqp_configuration() -> None:
