@@ -185,6 +185,10 @@ class TrackKalmanFilter:
         self.initialised = False
         self.epoch_s = 0.0
         self.last_input_mps2 = 0.0
+        self.unknown_input_sigma_mps2: float | None = None
+        """σ of an acceleration no sensor measures [m/s²]: set while the IMU is dead, so that the
+        prediction (then at constant speed) admits the train's braking and traction and the
+        odometer's speeds are not gated out as the train slows or speeds up."""
         self.rejected = {"odometer": 0, "gps": 0}
         self.accepted = {"odometer": 0, "gps": 0, "fix": 0}
         self.reanchored = 0
@@ -301,6 +305,9 @@ class TrackKalmanFilter:
         x[1, 0] = speed + acceleration * dt_s
         x[4, 0] *= self._transition[4, 4]
         self.kf.P = self._transition @ self.kf.P @ self._transition_t + self._process
+        if self.unknown_input_sigma_mps2 is not None:
+            spread = np.array([0.5 * dt_s * dt_s, dt_s])
+            self.kf.P[:2, :2] += np.outer(spread, spread) * self.unknown_input_sigma_mps2**2
 
     # -- measurements ----------------------------------------------------------------------
 

@@ -55,6 +55,9 @@ __all__ = [
 ]
 
 ALL_SENSORS = frozenset({"imu", "odometer", "gps"})
+DEAD_IMU_ACCELERATION_SIGMA_MPS2 = 0.5
+"""σ of the train's acceleration while the IMU is dead [m/s²]: the URV brakes at up to
+0.93 m/s² and accelerates at up to about 0.5 m/s² (docs/sfa.md)."""
 _SENSOR_NAMES = {SensorType.IMU: "imu", SensorType.ODOMETER: "odometer", SensorType.GPS: "gps"}
 _MALFORMED_REASONS = {
     "TruncatedDatagramError": "truncated",
@@ -315,8 +318,10 @@ class ListenerCore:
         epoch_s = flt.epoch_s
         imu_alive = epoch_s - seen.get("imu", -math.inf) <= config.imu_silence_s
         if not imu_alive:
-            # A dead IMU must not leave its last acceleration integrating for ever.
+            # A dead IMU must not leave its last acceleration integrating for ever; the speed is
+            # then the odometer's, with the train's accelerations as the unknown input.
             flt.last_input_mps2 = flt.bias_mps2
+        flt.unknown_input_sigma_mps2 = None if imu_alive else DEAD_IMU_ACCELERATION_SIGMA_MPS2
         odometer_alive = (
             epoch_s - seen.get("odometer", -math.inf) <= config.odometer_silence_s
             and self._odometer_rejections < config.odometer_rejections
