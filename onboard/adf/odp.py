@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
+from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap
 
 __all__ = [
@@ -38,7 +39,7 @@ __all__ = [
 COMFORT_ACCELERATION_MPS2 = 0.5
 MAX_ACCELERATION_MPS2 = 1.0
 LIMIT_SAMPLE_M = 5.0
-CAP_MARGIN_MPS = 0.2 / 3.6
+CAP_MARGIN_MPS = 0.2 * MPS_PER_KMH
 """A plan holds this far under the journey's cap [m/s], which the NMPC holds as a hard ceiling:
 a reference on the ceiling leaves it no room to catch up and makes its NLP degenerate."""
 
