@@ -78,6 +78,9 @@ LEG_MARGIN_M = 40.0
 """Nothing is put within this distance of a leg's ends [m]."""
 RESTORE_BEHIND_M = 200.0
 """A restored MA ends this far behind the shortened stop, nearly a lap ahead on a ring [m]."""
+CLOSED_UP_M = 15.0
+"""ETCS's distance to an EoA short of the stop under which the train has closed up to it [m]:
+the RBC gives the route back then."""
 
 
 @dataclass(frozen=True)
@@ -346,7 +349,8 @@ def _ma_events(track_map: TrackMap, legs: list[_Leg], ma: MaDraw,
     near = round(0.1 * (eoa_along - trigger) + 60.0 + max(ma.offset_m, 0.0), 1)
     when = f"standstill and eoa_distance_m < {near}"
     if ma.placement == "before":
-        when = f"standstill and next_stop == {tps[ma.leg]} and eoa_distance_m < {near}"
+        # Once the train has closed up to the EoA (docs/decisions.md, "Closing up to an EoA").
+        when = f"standstill and next_stop == {tps[ma.leg]} and eoa_distance_m < {CLOSED_UP_M}"
     restore = track_map.normalise(leg.stop_m - RESTORE_BEHIND_M) if track_map.line.ring else (
         track_map.length_m - 1.0
     )  # fmt: skip

@@ -15,6 +15,8 @@ overspeed_mrsp     ``max_overspeed_kmh`` > tolerance (the true speed above the M
 overspeed_cap      ``max_speed_over_cap_kmh`` > tolerance (the true speed above the journey's
                    cap while in AD)
 eoa_passed         ``min_eoa_margin_m`` < 0 (the true front end beyond ETCS's EoA)
+eoa_stop_far       an ``eoa_stops`` item's ``distance_to_eoa_m`` > ``max_eoa_stop_m`` (the
+                   train did not close up to an EoA it stood before)
 etcs_intervention  ``etcs_sb_count`` or ``etcs_eb_count`` > 0
 vc_eb              ``vc_eb_count`` > 0 and no fault of the scenario asks for it
                    (:func:`faults_asking_for_vc_eb`)
@@ -138,6 +140,15 @@ def _eoa_passed(_spec: ScenarioSpec, kpis: Kpis, _settings: InvariantSettings) -
     return [f"EoA passed by {-margin:.2f} m"] if margin is not None and margin < 0.0 else []
 
 
+def _eoa_stop_far(_spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) -> list[str]:
+    return [
+        f"stood {stop['distance_to_eoa_m']:.2f} m before an EoA at {stop['time_s']:.1f} s "
+        f"(at most {settings.max_eoa_stop_m:g} m)"
+        for stop in kpis.get("eoa_stops") or []
+        if stop["distance_to_eoa_m"] > settings.max_eoa_stop_m
+    ]
+
+
 def _etcs_intervention(_spec: ScenarioSpec, kpis: Kpis, _settings: InvariantSettings) -> list[str]:
     service, emergency = kpis.get("etcs_sb_count") or 0, kpis.get("etcs_eb_count") or 0
     if service or emergency:
@@ -189,6 +200,7 @@ _CHECKS: dict[InvariantName, Callable[[ScenarioSpec, Kpis, InvariantSettings], l
     "overspeed_mrsp": _overspeed_mrsp,
     "overspeed_cap": _overspeed_cap,
     "eoa_passed": _eoa_passed,
+    "eoa_stop_far": _eoa_stop_far,
     "etcs_intervention": _etcs_intervention,
     "vc_eb": _vc_eb,
     "stop_missed": _stop_missed,

@@ -207,7 +207,8 @@ def _run_vc(spec: ScenarioSpec, seed: int) -> RunOutcome:
     result = run_vc_scenario(scenario, replicas=spec.vc.replicas, seed=seed)
     kpis: dict[str, Any] = {
         "scenario": spec.name, "seed": seed, "sim_time_s": scenario.duration_s,
-        "stops": [], "max_overspeed_kmh": 0.0, "etcs_sb_count": 0, "etcs_eb_count": 0,
+        "stops": [], "eoa_stops": [], "max_overspeed_kmh": 0.0, "etcs_sb_count": 0,
+        "etcs_eb_count": 0,
         "vc_eb_count": sum(1 for e in result.events if e.kind.value == "eb_commanded"),
         "system_decay": result.decay_s is not None, "traction_energy_kwh": 0.0,
         "regen_energy_kwh": 0.0, "max_jerk_mps3": 0.0, "ad_speed_rms_kmh": None,
@@ -539,10 +540,12 @@ class _Stack:
             ahead = _forward_m(self.node, here, fault.position_m)
             self.recorder.obstacle_m = plant.position_m + ahead
             end_m = here + ahead - OBSTACLE_MARGIN_M
+            danger_m = 0.0
         else:
             assert isinstance(fault, ShortenedAuthority)
             end_m = here + _forward_m(self.node, here, fault.end_of_authority_m)
-        answer = self._movement_authority(end_m, absolute=True)
+            danger_m = fault.danger_point_m
+        answer = self._movement_authority(end_m, absolute=True, danger_point_m=danger_m)
         accepted = answer.status_code in (200, 201)
         self.actions.append(
             _ActionLog(f"rbc.{fault.kind}", self.node.clock.now_s, accepted, answer.text[:200])
@@ -564,21 +567,24 @@ class _Stack:
         elif not _wait(lambda: self.node.inputs_received[2] > before):
             raise ScenarioRunError("the RBC's TSR never reached the vehicle")
 
-    def _movement_authority(self, end_m: float, *, absolute: bool = False) -> Any:
+    def _movement_authority(
+        self, end_m: float, *, absolute: bool = False, danger_point_m: float = 0.0
+    ) -> Any:
         """The RBC (REST, as admin) issues an MA from here to ``end_m`` (a chainage, or with
-        ``absolute`` a position already unwrapped from here), or shortens the one it holds; the
-        run goes on once the vehicle has the message."""
+        ``absolute`` a position already unwrapped from here), or shortens the one it holds, its
+        new end with ``danger_point_m``; the run goes on once the vehicle has the message."""
         here = self.node.track_map.normalise(self.node.plant.position_m)
         if not absolute:
             end_m = here + _forward_m(self.node, here, end_m)
         url = f"/api/v1/rbc/{self.spec.vehicle.id}/ma"
         before = self.node.inputs_received[1]
         if self.rest.get(url, headers=self.headers).status_code == 404 or not absolute:
-            body = {"start_m": here, "end_of_authority_m": end_m, "line_id": self.spec.line}
+            body = {"start_m": here, "end_of_authority_m": end_m, "line_id": self.spec.line,
+                    "danger_point_m": danger_point_m}  # fmt: skip
             answer = self.rest.post(url, json=body, headers=self.headers)
         else:
-            answer = self.rest.post(f"{url}/shorten", json={"end_of_authority_m": end_m},
-                                    headers=self.headers)  # fmt: skip
+            end = {"end_of_authority_m": end_m, "danger_point_m": danger_point_m}
+            answer = self.rest.post(f"{url}/shorten", json=end, headers=self.headers)
         if answer.status_code in (200, 201) and not _wait(
             lambda: self.node.inputs_received[1] > before
         ):
@@ -783,6 +789,7 @@ class _Stack:
         kpis.update(
             scenario=self.spec.name, seed=self.seed, sim_time_s=node.clock.now_s,
             min_eoa_margin_m=_finite(recorder.maxima.eoa_margin_m),
+            eoa_stops=[record.as_kpi() for record in recorder.eoa_stops],
             max_speed_over_cap_kmh=(
                 None if recorder.cap_mps is None
                 else max(recorder.maxima.over_cap_mps, 0.0) / MPS_PER_KMH

@@ -223,9 +223,18 @@ class _Triggered(_Model):
         return None if self.when is None else parse_condition(self.when)
 
 
+SHORTENED_DANGER_POINT_M = 50.0
+"""D_DP of a shortened MA's new end unless the fault gives one [m]: an RBC shortens an MA to a
+signal or a marker board, with a danger point beyond it (docs/scenarios.md)."""
+
+
 class ShortenedAuthority(_Triggered):
     kind: Literal["ma_shortened"]
     end_of_authority_m: float = Field(ge=0.0, allow_inf_nan=False, description="Chainage [m]")
+    danger_point_m: float = Field(
+        default=SHORTENED_DANGER_POINT_M, ge=0.0, le=1000.0, allow_inf_nan=False,
+        description="D_DP: from the new EoA to its danger point [m]; 0 for none (SvL = EoA)",
+    )  # fmt: skip
 
 
 class TemporarySpeedRestriction(_Triggered):
@@ -271,8 +280,9 @@ class Expectation(_Model):
     name: str | None = None
 
 
-InvariantName = Literal["overspeed_mrsp", "overspeed_cap", "eoa_passed", "etcs_intervention",
-                        "vc_eb", "stop_missed", "nmpc_unbounded", "crash"]  # fmt: skip
+InvariantName = Literal["overspeed_mrsp", "overspeed_cap", "eoa_passed", "eoa_stop_far",
+                        "etcs_intervention", "vc_eb", "stop_missed", "nmpc_unbounded",
+                        "crash"]  # fmt: skip
 """The invariants of ``deploy.scenario.invariants``."""
 
 
@@ -283,6 +293,8 @@ class InvariantSettings(_Model):
 
     max_stop_error_m: float = Field(default=0.5, gt=0.0, le=100.0, allow_inf_nan=False)
     """A journey stop is served when the train stands this close to it [m]."""
+    max_eoa_stop_m: float = Field(default=10.0, gt=0.0, le=1000.0, allow_inf_nan=False)
+    """Standing for an EoA short of its next stop, the train closes up this near to it [m]."""
     overspeed_tolerance_kmh: float = Field(default=0.0, ge=0.0, le=10.0, allow_inf_nan=False)
     """How far above the MRSP or the journey's cap the true speed may go [km/h]."""
     nmpc_max_fallback_s: float = Field(default=2.0, ge=0.0, allow_inf_nan=False)

@@ -25,7 +25,7 @@ from onboard.node import TASK_TABLE, OnboardNode
 from onboard.plant.interfaces import BogieTruth
 from onboard.runtime.clock import NS_PER_S
 
-__all__ = ["COLUMNS", "StopRecord", "TelemetryRecorder"]
+__all__ = ["COLUMNS", "EoaStopRecord", "StopRecord", "TelemetryRecorder"]
 
 RECORDER_PRIORITY = TASK_TABLE["sfa"].priority - 1
 """Right after the plant and the localisation: the truth and the estimate of this tick."""
@@ -51,6 +51,31 @@ class StopRecord:
     """True front position − stopping point, along the journey [m]."""
     odometry_interval_m: float
     """ETCS's confidence interval at the stop: the larger of over- and under-reading [m]."""
+
+
+@dataclass
+class EoaStopRecord:
+    """The train standing before an end of authority it stopped for (one record an EoA)."""
+
+    eoa_m: float
+    """The EoA in the plant's coordinate (unwrapped) [m]."""
+    time_s: float
+    """When the train came to stand at ``distance_to_eoa_m`` [s]."""
+    distance_to_eoa_m: float
+    """True front end to the EoA at the last standstill before it [m] (< 0: passed)."""
+    odometry_interval_m: float
+    """ETCS's confidence interval then (the larger of over- and under-reading) [m]."""
+
+    def as_kpi(self) -> dict[str, float]:
+        return {"time_s": self.time_s, "distance_to_eoa_m": self.distance_to_eoa_m,
+                "odometry_interval_m": self.odometry_interval_m}  # fmt: skip
+
+
+EOA_SAME_M = 0.5
+"""Two ends of authority closer than this [m] are one (the estimate moves the measure a bit)."""
+EOA_SETTLED_S = 0.5
+"""How long an EoA stays put before a standstill counts as a stop for it [s]: more than the
+ADF's control period, in which it follows a new one."""
 
 
 @dataclass
@@ -92,6 +117,9 @@ class TelemetryRecorder:
     node: OnboardNode
     rows: dict[str, list[float | str]] = field(default_factory=lambda: {c: [] for c in COLUMNS})
     stops: list[StopRecord] = field(default_factory=list)
+    eoa_stops: list[EoaStopRecord] = field(default_factory=list)
+    """Where the ADF stood still for an EoA short of its next stop (on its plan), measured on
+    the truth."""
     maxima: _Maxima = field(default_factory=_Maxima)
     obstacle_m: float | None = None
     """An obstacle's position in the plant's coordinate (unwrapped), once there is one [m]."""
@@ -104,6 +132,8 @@ class TelemetryRecorder:
     interventions: list[_Intervention] = field(default_factory=list)
     _next_sample_ns: int = 0
     _stopped_at: str | None = None
+    _standing_since_s: float | None = None
+    _eoa_seen: tuple[float, float] | None = None
     _eb: bool = False
 
     def register(self) -> None:
@@ -127,6 +157,7 @@ class TelemetryRecorder:
         if etcs is not None and etcs.end_of_authority_distance_m is not None:
             eoa_m = etcs.odometry.estimated_front_m + etcs.end_of_authority_distance_m
             maxima.eoa_margin_m = min(maxima.eoa_margin_m, eoa_m - plant.position_m)
+            self._note_eoa_stop(now_ns / NS_PER_S, eoa_m)
         interval = node.stack.etcs.odometry
         outside_m = max(plant.position_m - interval.max_safe_front_m,
                         interval.min_safe_front_m - plant.position_m)  # fmt: skip
@@ -140,6 +171,31 @@ class TelemetryRecorder:
         if now_ns >= self._next_sample_ns:
             self._next_sample_ns = now_ns + round(SAMPLE_S * NS_PER_S)
             self._sample(now_ns)
+
+    def _note_eoa_stop(self, now_s: float, eoa_m: float) -> None:
+        """A standstill for an EoA that has stayed put for :data:`EOA_SETTLED_S` (the ADF takes
+        a control period to follow a new one)."""
+        node = self.node
+        if self._eoa_seen is None or abs(self._eoa_seen[0] - eoa_m) >= EOA_SAME_M:
+            self._eoa_seen = (eoa_m, now_s)
+        if node.plant.speed_mps > STANDSTILL_MPS:
+            self._standing_since_s = None
+            return
+        if self._standing_since_s is None:
+            self._standing_since_s = now_s
+        settled = now_s - self._eoa_seen[1] >= EOA_SETTLED_S
+        if not (settled and node.stack.driving.stopping_for_authority):
+            return
+        distance_m = eoa_m - node.plant.position_m
+        last = self.eoa_stops[-1] if self.eoa_stops else None
+        if last is not None and abs(last.eoa_m - eoa_m) < EOA_SAME_M:
+            last.time_s = self._standing_since_s
+            last.distance_to_eoa_m = distance_m
+            last.odometry_interval_m = _interval_m(node)
+            return
+        self.eoa_stops.append(
+            EoaStopRecord(eoa_m, self._standing_since_s, distance_m, _interval_m(node))
+        )
 
     def _note_sensors(self, now_s: float) -> None:
         chain = self.node.sensor_fusion

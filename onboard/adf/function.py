@@ -46,14 +46,21 @@ __all__ = ["DrivingFunction", "NoJourneyError"]
 STOP_TOLERANCE_M = 1.0
 """Standing this close to a stopping point [m] is standing at it."""
 STANDSTILL_MPS = 0.01
-EOA_STOP_MARGIN_M = 2.0
-"""The plan stops this far before the end of the ETCS authority it is given."""
+EOA_STOP_MARGIN_M = 5.0
+"""Once it has closed up, the train stands this far before the end of its authority, on its
+estimate [m]: a margin on the estimate's error against the truth (within 3.5 m on the
+library's runs), so that it stands 1.5–8.5 m short of the EoA, never more than 10 m
+(docs/decisions.md, "Closing up to an EoA")."""
 EOA_MOVED_M = 5.0
 """A plan stopping for the EoA is redone when the EoA moves on by more than this (or closer)."""
 ODOMETRY_SHARE = 0.06
 """The SvL seen from the max-safe front end comes closer as the odometry interval grows with the
 distance run (3 % for the URV's odometer, docs/etcs.md; SUBSET-041 allows 5 %): the plan
-anticipates it, with a margin."""
+anticipates it, with a margin, on the distance still to run to the EoA; the anticipation shrinks
+as the train closes up."""
+CLOSE_UP_M = 3.0
+"""Standing at its stop for the EoA, the train closes up (a replan) when the stop can come at
+least this much closer [m]."""
 ARRIVAL_RESOLUTION_S = 1e-3
 """How closely the arrival estimates find the time of the reference at the vehicle [s]."""
 AUTHORITY_BRAKING_MPS2 = 0.35
@@ -198,6 +205,11 @@ class DrivingFunction:
         self.autonomous = AutonomousDriving(plan, self.model, self.nmpc)
         self.autonomous.set_permitted_speed(self.permitted_speed_mps)
         self.fallback_active = True
+
+    @property
+    def stopping_for_authority(self) -> bool:
+        """Whether the current plan stops before the EoA, short of the journey's next stop."""
+        return self._eoa_stop_m is not None
 
     @property
     def served(self) -> int:
@@ -350,17 +362,15 @@ class DrivingFunction:
         if eoa is not None and eoa - EOA_STOP_MARGIN_M < stop.distance_m - STOP_TOLERANCE_M:
             target = eoa - EOA_STOP_MARGIN_M - ODOMETRY_SHARE * max(eoa - travelled, 0.0)
             known, planned_for = self._eoa_stop_m, self._eoa_planned_for_m
-            # Hold the plan unless the stop must come closer, or the EoA itself moved on: as
-            # the train runs, the anticipated growth of the interval shrinks with the distance
-            # left faster than the interval grows, so the target alone creeps on; following it
-            # replan after replan brought the stop to the edge of ETCS's permitted curve.
-            if (
-                known is not None
-                and planned_for is not None
-                and target >= known - 0.5
-                and eoa <= planned_for + EOA_MOVED_M
-            ):
-                return
+            # Hold the plan unless the stop must come closer, the EoA itself moved on, or the
+            # train stands at the stop and can close up by a step: the anticipated growth of
+            # the interval has shrunk with the distance left. Closing up while running, replan
+            # after replan, brought the reference onto ETCS's permitted curve at low speed,
+            # where the curve's reaction times dominate (docs/decisions.md).
+            if known is not None and planned_for is not None and eoa <= planned_for + EOA_MOVED_M:
+                standing = speed_mps <= STANDSTILL_MPS
+                if known - 0.5 <= target and not (standing and target >= known + CLOSE_UP_M):
+                    return
             if target - travelled < STOP_TOLERANCE_M:
                 return  # at it already: the current plan holds the train
             self._replan(now_s, travelled, speed_mps, target, arrival_s=None)

@@ -129,6 +129,7 @@ def _kpis(**changes: Any) -> dict[str, Any]:
         "max_overspeed_kmh": 0.0, "max_speed_over_cap_kmh": 0.0, "min_eoa_margin_m": 50.0,
         "etcs_sb_count": 0, "etcs_eb_count": 0, "vc_eb_count": 0, "vc_interventions": [],
         "nmpc_ms": {"p50": 1.0, "p99": 4.0, "max": 9.0}, "actions": [],
+        "eoa_stops": [{"time_s": 90.0, "distance_to_eoa_m": 6.4}],
     }  # fmt: skip
     kpis.update(changes)
     return kpis
@@ -145,6 +146,7 @@ def small_spec(tmp_path: Path) -> ScenarioSpec:
         ({"max_overspeed_kmh": 0.4}, "overspeed_mrsp"),
         ({"max_speed_over_cap_kmh": 1.2}, "overspeed_cap"),
         ({"min_eoa_margin_m": -0.3}, "eoa_passed"),
+        ({"eoa_stops": [{"time_s": 90.0, "distance_to_eoa_m": 45.2}]}, "eoa_stop_far"),
         ({"etcs_sb_count": 1}, "etcs_intervention"),
         ({"etcs_eb_count": 1}, "etcs_intervention"),
         ({"vc_eb_count": 1}, "vc_eb"),
