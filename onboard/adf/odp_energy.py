@@ -98,6 +98,11 @@ distance since the last balise group ahead of the estimate; the planner brakes t
 MRSP_MARGIN_MPS = 0.2 * MPS_PER_KMH
 """The plan holds this far under the MRSP (not under the journey's cap), so that tracking
 errors of the controller under a model mismatch stay under the limit."""
+SPEED_OVERREAD_SHARE = 0.02
+"""ETCS's speed is the wheels' and reads up to the odometer's diameter tolerance (2 %) high
+(``onboard.etcs.odometer``). Up to a lower limit its target speed monitoring intervenes at any
+speed it reads above the limit once the max safe front end is some 20 m short of it, so the
+plan holds a lower limit that much further under it as well."""
 
 
 @dataclass(frozen=True)
@@ -181,6 +186,8 @@ class LegTrack:
         sections = track_map.mrsp_window(start_chainage_m, distance_m)
         for index, section in enumerate(sections):
             speed_mps = section.speed_mps - MRSP_MARGIN_MPS
+            if index > 0 and sections[index - 1].speed_mps > section.speed_mps:
+                speed_mps -= SPEED_OVERREAD_SHARE * section.speed_mps
             to_m = section.to_distance_m
             if index + 1 < len(sections) and sections[index + 1].speed_mps > section.speed_mps:
                 # ETCS raises the limit when the rear of the train's min safe front end has
