@@ -10,7 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from deploy.cli import app
-from deploy.scenario import load_scenario
+from deploy.scenario import campaign, load_scenario
 from deploy.scenario.campaign import (
     Cell,
     CellResult,
@@ -64,3 +64,16 @@ def test_a_campaign_over_worker_processes_writes_its_summary(tmp_path: Path) -> 
     lines = re.findall(r"^\[\d/4\] (vc-[AB] seed=[01]): passed \(RTF [\d.]+\)$", result.output,
                        re.MULTILINE)  # fmt: skip
     assert sorted(lines) == ["vc-A seed=0", "vc-A seed=1", "vc-B seed=0", "vc-B seed=1"]
+
+
+def test_workers_are_replaced_and_the_results_keep_the_cells_order(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    # Two runs a worker: five cells over two slots need at least three worker processes.
+    monkeypatch.setattr(campaign, "RUNS_PER_WORKER", 2)
+    cells = [Cell(name, seed) for seed in (0, 1) for name in ("vc-A", "vc-B")] + [Cell("vc-A", 2)]
+    seen: list[str] = []
+    results = campaign.run_campaign(cells, workers=2, on_result=lambda r: seen.append(r.cell.label))
+    assert [r.cell for r in results] == cells
+    assert all(r.kpis is not None and r.kpis["passed"] for r in results)
+    assert sorted(seen) == sorted(cell.label for cell in cells)
