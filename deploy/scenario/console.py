@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -98,6 +100,26 @@ def summary_table(outcome: RunOutcome) -> Table:
     return table
 
 
+@contextlib.contextmanager
+def _campaign_progress(
+    console: Console, total: int
+) -> Iterator[tuple[Progress, Callable[[Any], None]]]:
+    """A campaign's progress bar, and the callback that prints one line a run as it ends, so
+    that a long campaign can be followed in a log."""
+    with Progress(TextColumn("[bold]campaign"), BarColumn(), TextColumn("{task.completed}/"
+                  "{task.total}"), TimeElapsedColumn(), console=console) as bar:  # fmt: skip
+        task = bar.add_task("campaign", total=total)
+        done = [0]
+
+        def finished(result: Any) -> None:
+            done[0] += 1
+            bar.console.print(f"[{done[0]}/{total}] {_result_line(result)}",
+                              markup=False, highlight=False, soft_wrap=True)  # fmt: skip
+            bar.advance(task)
+
+        yield bar, finished
+
+
 def campaign_from_cli(
     scenarios: list[str], *, seeds: int, first_seed: int, workers: int, vary: list[str],
     json_path: Path | None,
@@ -123,18 +145,7 @@ def campaign_from_cli(
     except (ValueError, ScenarioFileError) as exc:
         console.print(f"[red]{exc}[/red]")
         return 2
-    with Progress(TextColumn("[bold]campaign"), BarColumn(), TextColumn("{task.completed}/"
-                  "{task.total}"), TimeElapsedColumn(), console=console) as bar:  # fmt: skip
-        task = bar.add_task("campaign", total=len(cells))
-        done = [0]
-
-        def finished(result: Any) -> None:
-            # One line a run as it ends, so that a long campaign can be followed in a log.
-            done[0] += 1
-            bar.console.print(f"[{done[0]}/{len(cells)}] {_result_line(result)}",
-                              markup=False, highlight=False, soft_wrap=True)  # fmt: skip
-            bar.advance(task)
-
+    with _campaign_progress(console, len(cells)) as (_bar, finished):
         results = run_campaign(cells, workers=workers, on_result=finished)
     summary = summarise(results)
     table = Table(title=f"campaign: {summary['runs']} runs, {summary['crashed']} crashed, "
@@ -204,17 +215,7 @@ def generated_campaign_from_cli(
         return 2
     out = out_dir or default_out_dir(seed)
     console.print(f"generating {count} scenarios (space {space.name}, seed {seed}) into {out}/")
-    with Progress(TextColumn("[bold]campaign"), BarColumn(), TextColumn("{task.completed}/"
-                  "{task.total}"), TimeElapsedColumn(), console=console) as bar:  # fmt: skip
-        task = bar.add_task("campaign", total=count)
-        done = [0]
-
-        def finished(result: Any) -> None:
-            done[0] += 1
-            bar.console.print(f"[{done[0]}/{count}] {_result_line(result)}",
-                              markup=False, highlight=False, soft_wrap=True)  # fmt: skip
-            bar.advance(task)
-
+    with _campaign_progress(console, count) as (bar, finished):
         campaign = run_generated(
             space, count=count, seed=seed, out_dir=out, workers=workers,
             shrink_runs=shrink_runs, on_result=finished,
