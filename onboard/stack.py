@@ -459,7 +459,8 @@ class OnboardStack:
             next_stop = self.journey_plan.stops[0]
         output = self.etcs.output
         ahead = output.end_of_authority_distance_m if output is not None else None
-        dwell = stopped_at is None or driving.journey_time_s(now_s) >= stopped_at.departure_s
+        journey_s = driving.journey_time_s(now_s)
+        dwell = stopped_at is None or journey_s >= driving.departure_s(stopped_at)
         return AtoObInputs(
             etcs=None if output is None else EtcsStatus.from_output(output, received_s=now_s),
             journey_profile_valid=self.journey_plan is not None,

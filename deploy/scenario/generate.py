@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from deploy.scenario.schema import (
+    SHORTENED_DANGER_POINT_M,
     Action,
     AtoFailure,
     Fault,
@@ -78,6 +79,8 @@ LEG_MARGIN_M = 40.0
 """Nothing is put within this distance of a leg's ends [m]."""
 RESTORE_BEHIND_M = 200.0
 """A restored MA ends this far behind the shortened stop, nearly a lap ahead on a ring [m]."""
+FALLBACK_FAULTS = ("zenoh_link_loss", "ato_failure", "vigilance_absent")
+"""Faults that can end in a fallback stop, after which the operator engages ATO again."""
 CLOSED_UP_M = 15.0
 """ETCS's distance to an EoA short of the stop under which the train has closed up to it [m]:
 the RBC gives the route back then."""
@@ -338,12 +341,21 @@ def _ma_events(track_map: TrackMap, legs: list[_Leg], ma: MaDraw,
     leg = legs[ma.leg]
     eoa_along = leg.length_m + (ma.offset_m if ma.placement == "beyond" else -ma.offset_m)
     latest = eoa_along - _braking_m(leg.top_mps, 0.0)
-    if latest <= LEG_MARGIN_M or eoa_along <= LEG_MARGIN_M:
+    # After any group with an MA before the EoA: its packet 12 would replace the shortening.
+    earliest = max([LEG_MARGIN_M] + [a + 10.0 for g in track_map.line.balise_groups
+                   if 0.0 <= (a := _forward(track_map, leg.start_m, g.position_m)) < eoa_along
+                   and any(p.type == "movement_authority" for p in g.packets)])  # fmt: skip
+    if latest <= earliest or eoa_along <= LEG_MARGIN_M:
         return None
-    trigger = LEG_MARGIN_M + ma.where * (latest - LEG_MARGIN_M)
+    trigger = earliest + ma.where * (latest - earliest)
     eoa = round(track_map.normalise(leg.start_m + eoa_along), 1)
+    # The SvL is supervised from the max-safe front end: the danger point covers the interval
+    # there (5 m + 5 % from the last group, and the location accuracies).
+    behind = [d for g in track_map.line.balise_groups
+              if (d := _forward(track_map, g.position_m, eoa)) >= 0.0]  # fmt: skip
+    danger = max(SHORTENED_DANGER_POINT_M, float(math.ceil(10.0 + 0.05 * min(behind, default=eoa))))
     fault = ShortenedAuthority(kind="ma_shortened", when=_in_leg(track_map, leg, tps[ma.leg],
-                               trigger), end_of_authority_m=eoa)  # fmt: skip
+                               trigger), end_of_authority_m=eoa, danger_point_m=danger)  # fmt: skip
     if ma.placement == "beyond" and ma.leg == len(legs) - 1:
         return fault, None
     near = round(0.1 * (eoa_along - trigger) + 60.0 + max(ma.offset_m, 0.0), 1)
@@ -351,7 +363,8 @@ def _ma_events(track_map: TrackMap, legs: list[_Leg], ma: MaDraw,
     if ma.placement == "before":
         # Once the train has closed up to the EoA (docs/decisions.md, "Closing up to an EoA").
         when = f"standstill and next_stop == {tps[ma.leg]} and eoa_distance_m < {CLOSED_UP_M}"
-    restore = track_map.normalise(leg.stop_m - RESTORE_BEHIND_M) if track_map.line.ring else (
+    behind_m = min(eoa_along, leg.length_m) - RESTORE_BEHIND_M  # behind the EoA short of the stop
+    restore = track_map.normalise(leg.start_m + behind_m) if track_map.line.ring else (
         track_map.length_m - 1.0
     )  # fmt: skip
     return fault, Action(do="issue_ma", when=when, end_of_authority_m=round(restore, 1))
@@ -396,7 +409,8 @@ def render(space: GeneratorSpace, base: Draw) -> ScenarioSpec:
         duration_s=round(PREAMBLE_S + times[-1][0] + space.duration_margin_s, 0),
         end_when="journey_ended and standstill",
         vehicle=space.vehicle.model_copy(update={"start_position_m": base.start_position_m}),
-        operator=OperatorSpec(simulated=True, reaction_s=base.reaction_s),
+        operator=OperatorSpec(simulated=True, reaction_s=base.reaction_s,
+                              reengage=any(f.kind in FALLBACK_FAULTS for f in base.faults)),
         journey=JourneySpec(id="generated", max_speed_kmh=base.cap_kmh,
                             timing_points=tuple(points)),
         actions=tuple(actions), faults=tuple(faults), invariants=space.invariants,

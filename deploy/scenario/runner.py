@@ -287,6 +287,7 @@ class _Stack:
         self._done: set[int] = set()
         """The one-shot faults already injected (by index)."""
         self._session_up = False
+        self._ready_since_s: float | None = None
         self.lockstep_wall_s = 0.0
         """Wall time spent stepping the node (the rest is set-up, operator and REST)."""
         self.session_outages: list[dict[str, float | None]] = []
@@ -400,6 +401,7 @@ class _Stack:
             if not self._act(state):
                 break
             self._answer_vc()
+            self._reengage(state)
             self._run(min(SLICE_S, spec.duration_s - node.clock.now_s))
             self._watch_session()
             if progress is not None:
@@ -655,6 +657,22 @@ class _Stack:
         self.actions.append(_ActionLog(action.do, now_s, reply["accepted"], reply["reason"]))
         if not reply["accepted"]:
             self.failures.append(f"{action.do} at {now_s:.1f} s refused: {reply['reason']}")
+
+    def _reengage(self, state: State) -> None:
+        """``operator.reengage``: engage again once ATO has stood ready for the reaction time,
+        after the journey was first engaged."""
+        if not self.spec.operator.reengage:
+            return
+        engaged = any(log.action == "engage" and log.accepted for log in self.actions)
+        now_s = float(state["time_s"])
+        if not engaged or state["ato_state"] != m.AtoState.READY.value:
+            self._ready_since_s = None
+            return
+        if self._ready_since_s is None:
+            self._ready_since_s = now_s
+        if now_s - self._ready_since_s >= self.spec.operator.reaction_s:
+            self._ready_since_s = None
+            self._do(Action(do="engage"))
 
     def _answer_vc(self) -> None:
         """The trackside's simulated operator looks at the vehicle's state now and answers what

@@ -55,6 +55,11 @@ class OperatorSpec(_Model):
     simulated: bool = True
     """A simulated operator answers the Vital Control's vigilance and EB-rearm requests."""
     reaction_s: float = Field(default=1.0, ge=0.0, le=60.0, allow_inf_nan=False)
+    reengage: bool = False
+    """The operator engages ATO again, ``reaction_s`` after it stands ready (RE) once the journey
+    has been engaged: after a fallback stop (a lost session, an ATO failure), as an operator at
+    the console does. Generated scenarios with such faults set it; their actions cannot, since
+    the fault may end with the train already at a stop."""
 
 
 class JourneySpec(_Model):

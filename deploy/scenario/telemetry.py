@@ -133,6 +133,7 @@ class TelemetryRecorder:
     _next_sample_ns: int = 0
     _stopped_at: str | None = None
     _standing_since_s: float | None = None
+    _stopped_for_authority: bool = False
     _eoa_seen: tuple[float, float] | None = None
     _eb: bool = False
 
@@ -182,9 +183,13 @@ class TelemetryRecorder:
             self._standing_since_s = None
             return
         if self._standing_since_s is None:
+            # A standstill counts when the train came to it stopping for the EoA: one at a
+            # stop that leaves towards an EoA short of the next stop is not one.
             self._standing_since_s = now_s
+            self._stopped_for_authority = node.stack.driving.stopping_for_authority
         settled = now_s - self._eoa_seen[1] >= EOA_SETTLED_S
-        if not (settled and node.stack.driving.stopping_for_authority):
+        if not (settled and self._stopped_for_authority
+                and node.stack.driving.stopping_for_authority):  # fmt: skip
             return
         distance_m = eoa_m - node.plant.position_m
         last = self.eoa_stops[-1] if self.eoa_stops else None

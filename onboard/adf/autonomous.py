@@ -14,9 +14,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from onboard.adf.nmpc import NmpcController, NmpcReference, NmpcResult
-from onboard.adf.odp import OdpPlan
+from onboard.adf.odp import MAX_ACCELERATION_MPS2, SPEED_UNDERREAD_SHARE, OdpPlan
 from onboard.plant.point_mass import CURVE_COEFFICIENT_M, PointMassParameters
 from protocol.units import GRAVITY_MPS2
 
@@ -24,6 +25,18 @@ __all__ = ["AutonomousDriving"]
 
 STANDSTILL_MPS = 0.05
 CEILING_WINDOW_M = np.array([-5.0, 0.0, 5.0])
+LEAD_M = 2.0
+"""The most the position reference leads the train by at the horizon's start [m]; beyond, by
+what the train can run from its speed under the ceilings, accelerating at
+:data:`CATCH_UP_MPS2`. A plan the train cannot follow (held back by a permitted speed that rose
+later than planned, a weak brake, a fallback law) would otherwise leave a lead the NMPC cannot
+close, and its NLP, dominated by that error, does not converge (the ADF re-times a plan the
+train has fallen far behind)."""
+CATCH_UP_MPS2 = MAX_ACCELERATION_MPS2
+"""The plans' highest acceleration: a train keeping up with its plan is never held back."""
+CEILING_MARGIN_MPS = 0.2 / 3.6
+"""The speed reference is held this far under each stage's ceiling [m/s], as the plans hold it
+under the MRSP: a reference on (or above) a ceiling makes the NLP degenerate."""
 REACHABLE_BRAKING_MPS2 = 0.7
 REACHABLE_DELAY_S = 1.2
 """Full braking as the NMPC can reach it: its rate bound and the actuator's lag take about a
@@ -41,6 +54,7 @@ class AutonomousDriving:
         self.controller = controller
         config = controller.config
         self._offsets_s = np.arange(1, config.horizon_steps + 1) * config.step_s
+        self._step_s = config.step_s
         self.last_result: NmpcResult | None = None
         self.permitted_speed_mps = math.inf
         """The ETCS permitted speed [m/s], a ceiling over the whole horizon."""
@@ -50,32 +64,52 @@ class AutonomousDriving:
         The EoA is the plan's business: the ADF replans to stop before it."""
         self.permitted_speed_mps = permitted_speed_mps
 
-    def reference(self, now_s: float, *, speed_mps: float | None = None) -> NmpcReference:
+    def reference(
+        self, now_s: float, *, speed_mps: float | None = None, distance_m: float | None = None
+    ) -> NmpcReference:
         """The horizon's reference at ``now_s``. With the measured ``speed_mps``, the permitted
         speed is not set below what full braking can reach from that speed (a ceiling the
-        vehicle cannot meet would make the NLP infeasible; ETCS supervises beyond)."""
-        track_map = self.plan.track_map
-        positions, speeds, forces = [], [], []
+        vehicle cannot meet would make the NLP infeasible; ETCS supervises beyond). With the
+        measured ``distance_m``, the positions lead it by at most :data:`LEAD_M` plus what the
+        ceilings let the train run."""
+        positions, speeds = [], []
         for t in now_s + self._offsets_s:
             distance, speed = self.plan.reference(float(t))
             positions.append(distance)
             speeds.append(speed)
-            forces.append(self._track_force_n(self.plan.chainage_m(distance)))
-        # The ceiling of a stage is the lowest MRSP within a few metres of its reference
-        # position: the train may run a little ahead of its reference.
+        targets = np.array(positions)
+        ceilings = self._ceilings(targets, speed_mps)
+        if distance_m is not None and speed_mps is not None:
+            catch_up = max(speed_mps, 0.0) + CATCH_UP_MPS2 * self._offsets_s
+            runnable = np.minimum(np.maximum(ceilings - CEILING_MARGIN_MPS, 0.0), catch_up)
+            targets = np.minimum(targets, distance_m + LEAD_M + np.cumsum(runnable) * self._step_s)
+            # The ceilings where the train is to be, as well as where the plan is.
+            ceilings = np.minimum(ceilings, self._ceilings(targets, speed_mps))
+        speeds_mps = np.minimum(np.array(speeds), np.maximum(ceilings - CEILING_MARGIN_MPS, 0.0))
+        forces = [self._track_force_n(self.plan.chainage_m(float(d))) for d in targets]
+        return NmpcReference(targets, speeds_mps, ceilings, np.array(forces))
+
+    def _ceilings(self, positions: npt.NDArray[np.float64],
+                  speed_mps: float | None) -> npt.NDArray[np.float64]:  # fmt: skip
+        """Each stage's ceiling [m/s]: the lowest MRSP within a few metres of its position (the
+        train may run a little ahead of it), the permitted speed and the journey's cap, less
+        the measured speed's under-read share; with the measured ``speed_mps``, never below
+        what full braking reaches from it."""
+        around = np.add.outer(positions, CEILING_WINDOW_M)
         origin = self.plan.start_chainage_m
-        around = np.add.outer(np.array(positions), CEILING_WINDOW_M)
-        ceilings = track_map.mrsp_ahead_mps(origin, around).min(axis=1)
-        ceilings = np.minimum(ceilings, self.permitted_speed_mps)
+        mrsp: npt.NDArray[np.float64] = self.plan.track_map.mrsp_ahead_mps(origin, around)
+        ceilings: npt.NDArray[np.float64] = np.minimum(mrsp.min(axis=1), self.permitted_speed_mps)
         if self.plan.cap_mps is not None:
             ceilings = np.minimum(ceilings, self.plan.cap_mps)
+        # On the measured speed, which may read low by the odometer's tolerance.
+        ceilings = ceilings * (1.0 - SPEED_UNDERREAD_SHARE)
         if speed_mps is not None:
             # A ceiling the vehicle is already above (a permitted speed that drops at once, an
             # overshoot) it can meet only after braking: held at what full braking reaches.
             delay = np.maximum(self._offsets_s - REACHABLE_DELAY_S, 0.0)
             reachable = np.maximum(speed_mps - REACHABLE_BRAKING_MPS2 * delay, 0.0)
             ceilings = np.maximum(ceilings, reachable)
-        return NmpcReference(np.array(positions), np.array(speeds), ceilings, np.array(forces))
+        return ceilings
 
     def _track_force_n(self, chainage_m: float) -> float:
         track_map = self.plan.track_map
@@ -100,7 +134,7 @@ class AutonomousDriving:
             applied_force_n = max(applied_force_n, 0.0)
         result = self.controller.solve(
             position_m=distance_m, speed_mps=speed_mps, applied_force_n=applied_force_n,
-            reference=self.reference(now_s, speed_mps=speed_mps),
+            reference=self.reference(now_s, speed_mps=speed_mps, distance_m=distance_m),
         )  # fmt: skip
         self.last_result = result
         return result.force_n

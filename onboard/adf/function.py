@@ -76,6 +76,12 @@ TSR_DELAYS_S = (15.0, 30.0, 60.0, 120.0, 300.0)
 """How late [s] a leg replanned under a new TSR may arrive, tried in turn when it cannot keep
 its schedule."""
 DELAY_PROBE_M = 0.5
+BEHIND_PLAN_M = 25.0
+"""A train this far behind its reference [m] (held back by a permitted speed that rose later
+than planned, a brake that gave less, a fallback law) has its leg replanned from where it is:
+the time-based reference would otherwise reach the stop, and leave it, before the train."""
+BEHIND_RETRY_S = 5.0
+"""After a catch-up replan that could not be made, the next try comes this much later [s]."""
 
 
 class NoJourneyError(RuntimeError):
@@ -114,6 +120,9 @@ class DrivingFunction:
         self._eoa_stop_m: float | None = None
         self._eoa_planned_for_m: float | None = None
         """The EoA [m from the origin] the stop at ``_eoa_stop_m`` was planned for."""
+        self._catch_up_after_s = -math.inf
+        self._departures_s: dict[str, float] = {}
+        """Departures delayed by a late arrival, by timing point [s from the journey's start]."""
         self._served = 0
         """How many stops of the journey have been served (stopped at, or passed)."""
         """Where the current plan stops for the EoA (distance travelled), when it does."""
@@ -157,6 +166,7 @@ class DrivingFunction:
         self.fallback_active = False
         self._eoa_stop_m = None
         self._served = 0
+        self._departures_s.clear()
         self.nmpc.reset()
         if self.skipped:
             self._leave_for_next_stop(now_s, position_m=position_m, speed_mps=0.0)
@@ -190,6 +200,10 @@ class DrivingFunction:
             raise NoJourneyError("no journey to stop on")
         stop = self.next_stop(position_m)
         if stop is None:
+            return
+        if self._eoa_stop_m is not None:
+            # Already stopping short of it for the EoA (_follow_authority is off in fallback).
+            self.fallback_active = True
             return
         travelled = position_m - self._origin_m
         cap = self.journey.plan.cap_mps or self.track_map.mrsp_mps(self.journey.start_chainage_m)
@@ -414,7 +428,7 @@ class DrivingFunction:
             return  # too close to change: the ceilings and ETCS still hold the train back
         legs = list(replanned.legs)
         if arrival_s is not None:
-            legs += [leg for leg in plan.legs if leg.start_distance_m >= stop_m - STOP_TOLERANCE_M]
+            legs += self._later_legs(plan, stop_m, arrival_end_s=legs[-1].end_s)
         self.autonomous = AutonomousDriving(
             OdpPlan(
                 [OdpLeg(leg.start_s, leg.start_distance_m, leg.segment) for leg in legs],
@@ -424,6 +438,52 @@ class DrivingFunction:
             self.model, self.nmpc,
         )  # fmt: skip
         self.replans += 1
+
+    def _catch_up(self, now_s: float, position_m: float, speed_mps: float) -> None:
+        """Replan the leg from the measured state when the train has fallen
+        :data:`BEHIND_PLAN_M` behind its reference and nothing but the plan holds it back (the
+        ETCS permitted speed at the MRSP or above)."""
+        if (self.journey is None or self.autonomous is None or self.fallback_active
+                or now_s < self._catch_up_after_s):  # fmt: skip
+            return
+        travelled = position_m - self._origin_m
+        reference_m = float(self.autonomous.plan.reference(now_s - self._origin_s)[0])
+        if reference_m - travelled < BEHIND_PLAN_M:
+            return
+        mrsp = self.track_map.mrsp_mps(self.track_map.normalise(position_m))
+        stop = self.next_stop(position_m)
+        if stop is None or self.permitted_speed_mps < mrsp:
+            return
+        before = self.replans
+        if self._eoa_stop_m is not None:
+            self._replan(now_s, travelled, speed_mps, self._eoa_stop_m, arrival_s=None)
+        else:
+            self._replan(now_s, travelled, speed_mps, stop.distance_m, arrival_s=stop.arrival_s)
+        if self.replans == before:
+            self._catch_up_after_s = now_s + BEHIND_RETRY_S
+
+    def _later_legs(self, plan: OdpPlan, stop_m: float, *, arrival_end_s: float) -> list[OdpLeg]:
+        """The journey's legs after the stop at ``stop_m``; when the replanned leg arrives
+        there at ``arrival_end_s``, too late for the scheduled departure, they are delayed so
+        that the stop keeps its scheduled dwell (a reference that left before the train had
+        arrived would run it through the stop)."""
+        later = [leg for leg in plan.legs if leg.start_distance_m >= stop_m - STOP_TOLERANCE_M]
+        assert self.journey is not None
+        stop = next((s for s in self.journey.stops
+                     if abs(s.distance_m - stop_m) <= STOP_TOLERANCE_M), None)  # fmt: skip
+        if not later or stop is None:
+            return later
+        delay_s = arrival_end_s + (stop.departure_s - stop.arrival_s) - later[0].start_s
+        if delay_s <= 0.0:
+            self._departures_s.pop(stop.timing_point_id, None)
+            return later
+        self._departures_s[stop.timing_point_id] = later[0].start_s + delay_s
+        return [OdpLeg(leg.start_s + delay_s, leg.start_distance_m, leg.segment) for leg in later]
+
+    def departure_s(self, stop: JourneyStop) -> float:
+        """When the plan leaves ``stop`` [s from the journey's start]: its scheduled departure,
+        or later when the train arrived late and the stop keeps its dwell."""
+        return self._departures_s.get(stop.timing_point_id, stop.departure_s)
 
     # -- control -------------------------------------------------------------------------------
 
@@ -454,6 +514,8 @@ class DrivingFunction:
         u_ad = 0.0
         if self.sc.needs_autonomous:
             self._follow_authority(now_s, position_m, speed_mps)
+            if traction_allowed and not service_brake:  # else the ATO-OB holds it back
+                self._catch_up(now_s, position_m, speed_mps)
         if self.sc.needs_autonomous and self.autonomous is not None:
             self.autonomous.set_permitted_speed(self.permitted_speed_mps)
             u_ad = self.autonomous.force_n(

@@ -16,9 +16,10 @@ stop by about τ·v. The NLP is built once with casadi and solved by ``sqpmethod
 of the model when cold, and when the reference or the ceiling jumps: a TSR, a replanned leg, a
 new permitted speed); IPOPT can be chosen for comparison.
 
-The solve time is bounded by construction: at most ``max_iterations`` SQP iterations of at most
-``max_qp_iterations`` QP iterations each. Near an active constraint (cruising just under a
-ceiling) the SQP's primal residual can stall at about 1e-5 without meeting a tighter tolerance,
+The solve time is bounded by construction: at most ``max_iterations`` SQP iterations
+(``max_cold_iterations`` from a cold start) of at most ``max_qp_iterations`` QP iterations
+each. Near an active constraint (cruising just under a ceiling) the SQP's primal residual can
+stall at about 1e-5 without meeting a tighter tolerance,
 so the tolerances are 1e-4 in the NLP's units (m, m/s, kN: a tenth of a millimetre, of a mm/s, of
 a newton); an iterate that did not converge but meets every constraint within 1e-2 is used
 (counted as not converged). Otherwise the step falls back to a safe control law, counted as a
@@ -70,8 +71,14 @@ class NmpcConfig:
     where the real one stops; a hard v ≥ 0 would make stopping on the brake infeasible within
     the force-rate bound, so a small negative predicted speed stands for standing still."""
     solver: Literal["sqpmethod", "ipopt"] = "sqpmethod"
-    max_iterations: int = 10
-    """SQP iterations; a warm-started solve takes one or two."""
+    max_iterations: int = 3
+    """SQP iterations of a warm-started solve, which takes one: cruising or accelerating just
+    under a ceiling the primal residual can stall near 1e-3 from the first iteration on, and
+    further iterations change the demand by less than a newton."""
+    max_cold_iterations: int = 6
+    """SQP iterations of a solve started cold (from a rollout of the model): one or two on the
+    ADF's references, up to six with a reference above the ceiling and the power limit
+    binding."""
     max_qp_iterations: int = 50
     """QP iterations in each SQP iteration (qrqp)."""
     tolerance: float = 1e-4
@@ -128,7 +135,8 @@ class NmpcController:
         self.config = config or NmpcConfig()
         self.stats = NmpcStats()
         self._step = self._dynamics()
-        self._solver, self._bounds = self._build()
+        self._solver, self._bounds = self._build(self.config.max_iterations)
+        self._cold_solver, _ = self._build(self.config.max_cold_iterations)
         n = self.config.horizon_steps
         self._guess: FloatArray | None = None
         self._variables = STATE_SIZE * (n + 1) + n
@@ -159,7 +167,7 @@ class NmpcController:
         end = start + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         return ca.Function("step", [state, increment, track], [end])
 
-    def _build(self) -> tuple[ca.Function, dict[str, ca.DM]]:
+    def _build(self, max_iterations: int) -> tuple[ca.Function, dict[str, ca.DM]]:
         c, m, n = self.config, self.model, self.config.horizon_steps
         step = self._step
         states = ca.SX.sym("X", STATE_SIZE, n + 1)
@@ -205,7 +213,7 @@ class NmpcController:
             "ubg": upper,
         }
         # Converted once: casadi converts Python lists element by element at every call.
-        solver = ca.nlpsol("nmpc", c.solver, problem, _solver_options(c))
+        solver = ca.nlpsol("nmpc", c.solver, problem, _solver_options(c, max_iterations))
         return solver, {key: ca.DM(values) for key, values in bounds.items()}
 
     def reset(self) -> None:
@@ -233,11 +241,13 @@ class NmpcController:
         self._reference = reference
         started = time.perf_counter()
         try:
+            solver = self._solver
             if self._guess is None:
                 self.stats.cold_starts += 1
+                solver = self._cold_solver
             guess = self._initial_guess(state, reference.track_force_n / KN)
-            solution = self._solver(x0=guess, p=parameters, **self._bounds)
-            success = bool(self._solver.stats()["success"])
+            solution = solver(x0=guess, p=parameters, **self._bounds)
+            success = bool(solver.stats()["success"])
             if not success and self._feasible(solution):
                 self.stats.not_converged += 1
                 success = True
@@ -343,20 +353,20 @@ class NmpcController:
         )  # fmt: skip
 
 
-def _solver_options(config: NmpcConfig) -> dict[str, Any]:
+def _solver_options(config: NmpcConfig, max_iterations: int) -> dict[str, Any]:
     if config.solver == "ipopt":
         return {
             "print_time": False,
             "ipopt.print_level": 0,
             "ipopt.sb": "yes",
-            "ipopt.max_iter": max(config.max_iterations, 100),
+            "ipopt.max_iter": max(max_iterations, 100),
         }
     return {
         "qpsol": "qrqp",
         # The power constraint u·v makes the Lagrangian's Hessian indefinite; qrqp needs a
         # convex QP, so negative eigenvalues are clipped.
         "convexify_strategy": "eigen-clip",
-        "max_iter": config.max_iterations,
+        "max_iter": max_iterations,
         "tol_pr": config.tolerance,
         "tol_du": config.tolerance,
         "print_header": False,

@@ -33,6 +33,7 @@ __all__ = [
     "OdpPlan",
     "leg_speed_limit_mps",
     "lspb_segment",
+    "held_under",
     "plan_legs",
 ]
 
@@ -42,6 +43,19 @@ LIMIT_SAMPLE_M = 5.0
 CAP_MARGIN_MPS = 0.2 * MPS_PER_KMH
 """A plan holds this far under the journey's cap [m/s], which the NMPC holds as a hard ceiling:
 a reference on the ceiling leaves it no room to catch up and makes its NLP degenerate."""
+
+
+SPEED_UNDERREAD_SHARE = 0.006
+"""The ADF's speed, the sensor fusion's estimate, comes from the odometer's wheel and may read
+low by up to its calibration tolerance (0.6 %, three σ of the diameter error): a plan holds
+every ceiling, the MRSP and the journey's cap, that share under it, so that the true speed
+stays under the ceiling while the measured one tracks the reference."""
+
+
+def held_under(ceiling_mps: float, margin_mps: float) -> float:
+    """The speed [m/s] a plan holds under ``ceiling_mps``: the under-read share of the measured
+    speed and the controller's ``margin_mps`` below it."""
+    return ceiling_mps * (1.0 - SPEED_UNDERREAD_SHARE) - margin_mps
 
 
 class InfeasibleLegError(ValueError):
@@ -191,7 +205,7 @@ def plan_legs(
         length = distance_m - depart_m
         limit = leg_speed_limit_mps(track_map, start_chainage_m + depart_m, length)
         if cap_mps is not None:
-            limit = min(limit, cap_mps - CAP_MARGIN_MPS)
+            limit = min(limit, held_under(cap_mps, CAP_MARGIN_MPS))
         try:
             segment = lspb_segment(
                 length, arrival_s - depart_s, speed_limit_mps=limit,

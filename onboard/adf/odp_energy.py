@@ -45,10 +45,12 @@ from scipy.optimize import brentq, minimize_scalar
 from onboard.adf.energy import track_force_n
 from onboard.adf.odp import (
     MAX_ACCELERATION_MPS2,
+    SPEED_UNDERREAD_SHARE,
     InfeasibleLegError,
     LegProfile,
     OdpLeg,
     OdpPlan,
+    held_under,
     plan_legs,
 )
 from onboard.plant.point_mass import MIN_POWER_SPEED_MPS, PointMassParameters
@@ -102,7 +104,8 @@ SPEED_OVERREAD_SHARE = 0.02
 """ETCS's speed is the wheels' and reads up to the odometer's diameter tolerance (2 %) high
 (``onboard.etcs.odometer``). Up to a lower limit its target speed monitoring intervenes at any
 speed it reads above the limit once the max safe front end is some 20 m short of it, so the
-plan holds a lower limit that much further under it as well."""
+plan holds a lower limit that share under it (instead of the ADF's own under-read share,
+:data:`~onboard.adf.odp.SPEED_UNDERREAD_SHARE`, which it covers)."""
 
 
 @dataclass(frozen=True)
@@ -181,13 +184,13 @@ class LegTrack:
         self.model = model
         self.step_m = distance_m / steps
         self.distances_m = np.linspace(0.0, distance_m, steps + 1)
-        cap = math.inf if cap_mps is None else cap_mps - MRSP_MARGIN_MPS
+        cap = math.inf if cap_mps is None else held_under(cap_mps, MRSP_MARGIN_MPS)
         self.ceilings_mps = np.full(steps + 1, cap)
         sections = track_map.mrsp_window(start_chainage_m, distance_m)
         for index, section in enumerate(sections):
-            speed_mps = section.speed_mps - MRSP_MARGIN_MPS
+            speed_mps = held_under(section.speed_mps, MRSP_MARGIN_MPS)
             if index > 0 and sections[index - 1].speed_mps > section.speed_mps:
-                speed_mps -= SPEED_OVERREAD_SHARE * section.speed_mps
+                speed_mps -= (SPEED_OVERREAD_SHARE - SPEED_UNDERREAD_SHARE) * section.speed_mps
             to_m = section.to_distance_m
             if index + 1 < len(sections) and sections[index + 1].speed_mps > section.speed_mps:
                 # ETCS raises the limit when the rear of the train's min safe front end has

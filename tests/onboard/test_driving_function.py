@@ -249,3 +249,58 @@ def test_no_limit_cycle_at_a_low_constant_speed_just_under_a_tsr() -> None:
         if (speed - extreme) * direction >= 0:
             extreme = speed
     assert turns <= 1
+
+
+def test_a_stop_reached_late_keeps_its_dwell(ring: TrackMap) -> None:
+    """A TSR that makes the train arrive at east after its scheduled departure: the replanned
+    leg ends there, and the later legs wait for the dwell (issue 18: the time-based reference
+    used to leave east before the train had reached it, and ran the train through it)."""
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    loop = Loop(ring, start_m=200.0)
+    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
+    loop.adf.start_journey(journey, 0.0, position_m=200.0)
+    loop.adf.engage(0.0)
+    loop.run(200.0)
+    ring.add_temporary_speed_restriction(
+        TemporarySpeedRestriction(id="tsr-late", start_m=1700.0, end_m=2100.0, speed_mps=8 / 3.6)
+    )
+    loop.adf.speed_limits_changed(loop.now, position_m=loop.plant.position_m,
+                                  speed_mps=loop.plant.speed_mps)  # fmt: skip
+    arrived_s = None
+    while loop.now < 500.0:
+        loop.adf.set_etcs_limits(ring.mrsp_mps(loop.plant.position_m), None,
+                                 position_m=loop.plant.position_m)  # fmt: skip
+        loop.run(CONTROL_S)
+        stop = loop.adf.stopped_at(loop.plant.position_m, loop.plant.speed_mps)
+        if arrived_s is None and stop is not None and stop.timing_point_id == "east":
+            arrived_s = loop.now
+            assert abs(loop.plant.position_m - 1975.0) <= 0.5
+        if arrived_s is not None and loop.plant.speed_mps > 0.1:
+            break
+    assert arrived_s is not None and arrived_s > 320.0  # later than east's departure
+    east = journey.stops[0]
+    # East's dwell, from the replanned arrival (the train stops a second or two after it).
+    assert loop.adf.departure_s(east) >= arrived_s + 20.0 - 2.0
+    assert loop.now >= loop.adf.departure_s(east)  # it left no earlier
+    assert loop.adf.next_stop(loop.plant.position_m).timing_point_id == "south"  # type: ignore[union-attr]
+
+
+def test_a_train_far_behind_its_plan_is_replanned_from_where_it_is(ring: TrackMap) -> None:
+    """Held back by the brake for 15 s (as by a permitted speed that rose late), the train falls
+    far behind its reference; the leg is replanned from where it is, and east is served."""
+    loop = Loop(ring, start_m=200.0)
+    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
+    loop.adf.start_journey(journey, 0.0, position_m=200.0)
+    loop.adf.engage(0.0)
+    loop.run(60.0)
+    replans = loop.adf.replans
+    loop.run(15.0, service_brake=True)
+    assert loop.adf.replans == replans  # nothing to replan under the brake: ETCS's business
+    loop.run(10.0)
+    assert loop.adf.replans > replans
+    reference = loop.adf.autonomous.plan.reference(loop.now)[0]  # type: ignore[union-attr]
+    assert abs(reference - (loop.plant.position_m - 200.0)) < 5.0
+    loop.run(230.0)  # to 315 s: east's arrival is at 300 s, its departure at 320 s
+    stop = loop.adf.stopped_at(loop.plant.position_m, loop.plant.speed_mps)
+    assert stop is not None and stop.timing_point_id == "east"
+    assert abs(loop.plant.position_m - 1975.0) <= 0.5
