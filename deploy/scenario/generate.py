@@ -437,9 +437,14 @@ def _comment(space: GeneratorSpace, base: Draw) -> str:
         f"Start {base.start_position_m:g} m, cap {base.cap_kmh:g} km/h, operator reaction "
         f"{base.reaction_s:g} s; legs: {legs}.",
     ]
-    lines += [f"TSR in leg {t.leg + 1}: {t.placement}, {t.speed_kmh:g} km/h over "
-              f"{t.length_m:g} m" for t in base.tsrs]  # fmt: skip
+    track_map, geometry = _geometry(space, base)
+    tps = [f"tp{k + 1}-{leg.stop_id}" for k, leg in enumerate(base.legs)]
+    left_out = " (left out: no room for it in the leg)"
+    lines += [f"TSR in leg {t.leg + 1}: {t.placement}, {t.speed_kmh:g} km/h over {t.length_m:g} m"
+              + ("" if _tsr_fault(track_map, geometry, t, tps[t.leg]) else left_out)
+              for t in base.tsrs]  # fmt: skip
     lines += [f"MA shortened in leg {a.leg + 1}: {a.offset_m:g} m {a.placement} the stop"
+              + ("" if _ma_events(track_map, geometry, a, tps) else left_out)
               for a in base.mas]  # fmt: skip
     lines.append("Re-run: ato run THIS_FILE --fast (the invariants are its expectations).")
     return "\n".join(lines)

@@ -162,12 +162,16 @@ class ListenerCore:
             self.counters.dropped["invalid_value"] += 1
             return []
         buffer = self.buffer
+        distance = buffer.distance(packet.seq_no)
         if (
-            packet.sensor_type is SensorType.GROUND_TRUTH
-            and buffer.next_seq is not None
-            and buffer.distance(packet.seq_no) < -1024
+            distance > buffer.window
+            and packet.sensor_type in (SensorType.GROUND_TRUTH, SensorType.STOP)
+            or distance < -1024
+            and packet.sensor_type is SensorType.GROUND_TRUTH
         ):
-            # A GROUND_TRUTH far behind the order is a restarted sender, not a late packet.
+            # A GROUND_TRUTH far from the order is a restarted sender, a STOP far ahead the
+            # sender's last word: neither is late nor out of the reorder window (one corrupted
+            # byte cannot make either from another type: their counts differ).
             outputs = self._release(buffer.reset(packet.seq_no))
         else:
             outputs = []

@@ -6,6 +6,12 @@ A packet behind is dropped: a ``duplicate`` if it was released recently (or is a
 ``late`` otherwise. A packet ahead waits until the gap before it fills, or until the buffer holds
 more than ``depth`` packets, or until the oldest waiting packet has waited ``max_wait_s``: the
 gap is then declared lost (counted) and release resumes at the next number held.
+
+A packet more than ``window`` (2 × depth) ahead is ``out_of_window`` unless the packet that
+arrived before it was out of the window too and at most ``depth`` behind it (a duplicate does
+not count): one datagram alone never moves the order (a corrupted SEQ_NO would make every packet
+after it late and push the epochs ahead), a sender that has moved on (a dead bus, a burst of
+losses) is followed from its second packet.
 """
 
 from __future__ import annotations
@@ -37,12 +43,17 @@ class ReorderBuffer(Generic[T]):
             raise ValueError("depth must be ≥ 1 and max_wait_s ≥ 0")
         self.depth = depth
         self.max_wait_s = max_wait_s
+        self.window = 2 * depth
+        """Farthest a packet may be ahead of the next expected number on its own."""
         self.next_seq: int | None = None
         self.lost = 0
         """Sequence numbers declared lost when a gap was given up."""
         self._waiting: dict[int, tuple[T, float]] = {}
         self._recent: deque[int] = deque(maxlen=256)
         self._recent_set: set[int] = set()
+        self._far_seq: int | None = None
+        """SEQ_NO of the last packet that arrived out of the window, while no packet since has
+        arrived in it."""
 
     def __len__(self) -> int:
         return len(self._waiting)
@@ -53,6 +64,7 @@ class ReorderBuffer(Generic[T]):
         self.next_seq = next_seq
         self._recent.clear()
         self._recent_set.clear()
+        self._far_seq = None
         return flushed
 
     def distance(self, seq_no: int) -> int:
@@ -63,12 +75,19 @@ class ReorderBuffer(Generic[T]):
         return delta if delta < _HALF else delta - SEQ_MODULO
 
     def push(self, seq_no: int, item: T, arrival_s: float) -> str | None:
-        """Offer an item; returns ``"duplicate"`` or ``"late"`` when it is dropped, else None."""
+        """Offer an item; returns ``"duplicate"``, ``"late"`` or ``"out_of_window"`` when it is
+        dropped, else None."""
         if self.next_seq is None:
             self.next_seq = seq_no
         delta = (seq_no - self.next_seq) % SEQ_MODULO
         if delta >= _HALF:
             return "duplicate" if seq_no in self._recent_set else "late"
+        if delta > self.window:
+            far, self._far_seq = self._far_seq, seq_no
+            if far is None or not 0 < (seq_no - far) % SEQ_MODULO <= self.depth:
+                return "out_of_window"
+        else:
+            self._far_seq = None
         if seq_no in self._waiting:
             return "duplicate"
         self._waiting[seq_no] = (item, arrival_s)

@@ -83,9 +83,28 @@ def test_under_loss_the_sequence_distance_keeps_the_epoch_from_lagging(ring: Tra
     core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
     core.feed(packet(SensorType.STROBE, 1, 10.0), 0.0)
     # 200 SEQ_NO later (at most 122 packets a second): at least 1.6 s of IMU ticks have passed.
+    # The first packet out of the reorder window is refused, the next one confirms the jump.
     core.feed(packet(SensorType.IMU, 201, *IMU_LEVEL), 1.0)
+    core.feed(packet(SensorType.IMU, 202, *IMU_LEVEL), 1.0)
+    assert core.counters.dropped == {"out_of_window": 1}
     assert core.filter.epoch_s >= 11.6
-    assert core.buffer.lost == 199
+    assert core.buffer.lost == 200
+
+
+def test_a_corrupted_seq_no_far_ahead_is_dropped_and_moves_nothing(ring: TrackMap) -> None:
+    core = ListenerCore(ring)
+    core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
+    core.feed(packet(SensorType.STROBE, 1, 10.0), 0.0)
+    core.feed(packet(SensorType.IMU, 2, *IMU_LEVEL), 0.0)
+    corrupted = packet(SensorType.IMU, 2 + 12421, *IMU_LEVEL)  # one SEQ_NO byte flipped
+    core.feed(corrupted, 0.01)
+    core.feed(corrupted, 0.02)  # and duplicated by the link
+    for seq in range(3, 40):
+        core.feed(packet(SensorType.IMU, seq, *IMU_LEVEL), 0.01 * seq)
+    core.poll(1.0)
+    assert core.counters.dropped == {"out_of_window": 2}
+    assert core.counters.processed["imu"] == 38 and core.buffer.lost == 0
+    assert core.filter.epoch_s == pytest.approx(10.37)
 
 
 def test_reordered_packets_are_processed_in_order(ring: TrackMap) -> None:
