@@ -34,9 +34,13 @@ close, and its NLP, dominated by that error, does not converge (the ADF re-times
 train has fallen far behind)."""
 CATCH_UP_MPS2 = MAX_ACCELERATION_MPS2
 """The plans' highest acceleration: a train keeping up with its plan is never held back."""
-CEILING_MARGIN_MPS = 0.2 / 3.6
-"""The speed reference is held this far under each stage's ceiling [m/s], as the plans hold it
-under the MRSP: a reference on (or above) a ceiling makes the NLP degenerate."""
+ESTIMATE_MARGIN_MPS = 0.1 / 3.6
+"""Each ceiling is held this much lower as well [m/s]: the fused speed's error beyond the
+odometer's calibration (a train catching up its reference runs on the ceiling)."""
+CEILING_MARGIN_MPS = 0.1 / 3.6
+"""The speed reference is held this far under each stage's ceiling [m/s] (with the estimate's
+margin, where the plans hold it: 0.2 km/h under the limit less the under-read share): a
+reference on (or above) a ceiling makes the NLP degenerate."""
 REACHABLE_BRAKING_MPS2 = 0.7
 REACHABLE_DELAY_S = 1.2
 """Full braking as the NMPC can reach it: its rate bound and the actuator's lag take about a
@@ -102,7 +106,7 @@ class AutonomousDriving:
         if self.plan.cap_mps is not None:
             ceilings = np.minimum(ceilings, self.plan.cap_mps)
         # On the measured speed, which may read low by the odometer's tolerance.
-        ceilings = ceilings * (1.0 - SPEED_UNDERREAD_SHARE)
+        ceilings = ceilings * (1.0 - SPEED_UNDERREAD_SHARE) - ESTIMATE_MARGIN_MPS
         if speed_mps is not None:
             # A ceiling the vehicle is already above (a permitted speed that drops at once, an
             # overshoot) it can meet only after braking: held at what full braking reaches.
