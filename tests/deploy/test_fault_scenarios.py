@@ -20,3 +20,20 @@ def test_fault_scenario_meets_its_expectations(name: str) -> None:
     assert kpis["max_overspeed_kmh"] <= 0.0
     if kpis["min_eoa_margin_m"] is not None:
         assert kpis["min_eoa_margin_m"] >= 0.0
+
+
+def test_the_simulated_operator_engages_again_after_a_fallback_stop() -> None:
+    """`operator.reengage` in place of the library's second `engage` action: the lost session's
+    fallback stop is followed by a new engagement, and the journey is driven to its end."""
+    spec = load_scenario("zenoh-link-loss")
+    engages = [a for a in spec.actions if a.do == "engage"]
+    assert len(engages) == 2
+    spec = spec.model_copy(update={
+        "actions": tuple(a for a in spec.actions if a is not engages[1]),
+        "operator": spec.operator.model_copy(update={"reengage": True}),
+    })  # fmt: skip
+    kpis = run_scenario(spec, RunOptions(fast=True)).kpis
+    done = [a for a in kpis["actions"] if a["action"] == "engage" and a["accepted"]]
+    assert len(done) >= 2
+    failed = [item for item in kpis["expectations"] if not item["ok"]]
+    assert not failed, failed
