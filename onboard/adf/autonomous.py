@@ -62,6 +62,8 @@ class AutonomousDriving:
         self.last_result: NmpcResult | None = None
         self.permitted_speed_mps = math.inf
         """The ETCS permitted speed [m/s], a ceiling over the whole horizon."""
+        self._final_braking_mps2: float | None = None
+        """The plan's deceleration into the stop the reference comes to rest at [m/s²]."""
 
     def set_permitted_speed(self, permitted_speed_mps: float) -> None:
         """The ETCS permitted speed the ATO-OB controller passes on: a ceiling over the horizon.
@@ -141,4 +143,38 @@ class AutonomousDriving:
             reference=self.reference(now_s, speed_mps=speed_mps, distance_m=distance_m),
         )  # fmt: skip
         self.last_result = result
-        return result.force_n
+        return min(result.force_n, self.stopping_force_n(now_s, distance_m, speed_mps))
+
+    def stopping_force_n(self, now_s: float, distance_m: float, speed_mps: float) -> float:
+        """A ceiling on the demand in the final approach [N]: where the reference comes to rest
+        within the horizon, d ahead, and the train is faster than the plan's braking curve into
+        that stop (v²/2d above the plan's final deceleration), the force of the constant
+        deceleration v²/2d, which stops it there; +inf otherwise.
+
+        The NMPC's model, made for motion, would roll back under a brake held to standstill, so
+        it eases the brake off a few seconds early, and the train, which the real brake stops
+        and holds, ran about 0.2·a s² past its stop: 0.06–0.14 m at the plans' 0.35–0.7 m/s²."""
+        times = now_s + self._offsets_s
+        speeds = [self.plan.reference(float(t))[1] for t in times]
+        if speeds[-1] > 0.0:
+            self._final_braking_mps2 = None
+            return math.inf
+        rest = speeds.index(0.0)
+        if rest >= 2:  # the reference's deceleration just before it comes to rest
+            self._final_braking_mps2 = (speeds[rest - 2] - speeds[rest - 1]) / self._step_s
+        braking = self._final_braking_mps2
+        if braking is None or speed_mps < STANDSTILL_MPS:
+            return math.inf
+        remaining_m = self.plan.reference(float(times[-1]))[0] - distance_m
+        if remaining_m <= 0.0:
+            return -self.model.max_brake_force_n
+        needed_mps2 = speed_mps * speed_mps / (2.0 * remaining_m)
+        if needed_mps2 <= braking:
+            return math.inf
+        m = self.model
+        mass = m.mass_kg * (1.0 + m.rotating_mass_factor)
+        resistance = (
+            m.davis_a_n + m.davis_b_n_per_mps * speed_mps + m.davis_c_n_per_mps2 * speed_mps**2
+        )
+        track = self._track_force_n(self.plan.chainage_m(distance_m))
+        return min(resistance + track - mass * needed_mps2, 0.0)
