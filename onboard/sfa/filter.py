@@ -59,6 +59,10 @@ MATRIX_CACHE_SIZE = 256
 _POSITION_H = np.array([[1.0, 0.0, 0.0, 0.0, 0.0]])
 DIM_X = 5
 """State size: chainage, speed, accelerometer bias, odometer scale error, GPS error."""
+UNKNOWN_INPUT_HOLD_S = 1.0
+"""How long the train holds an acceleration no sensor measures [s] (a dead IMU's): over it the
+speed's σ grows by the unknown input's σ × this time, as an acceleration held that long moves
+the speed (the odometer then follows the URV's 1.8 m/s² of traction within its gate)."""
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -306,8 +310,17 @@ class TrackKalmanFilter:
         x[4, 0] *= self._transition[4, 4]
         self.kf.P = self._transition @ self.kf.P @ self._transition_t + self._process
         if self.unknown_input_sigma_mps2 is not None:
-            spread = np.array([0.5 * dt_s * dt_s, dt_s])
-            self.kf.P[:2, :2] += np.outer(spread, spread) * self.unknown_input_sigma_mps2**2
+            # Continuous white acceleration of density σ² × UNKNOWN_INPUT_HOLD_S: the speed's
+            # variance grows by that much a second whatever the step. Drawn afresh each step
+            # (the speed's variance then grew by σ² dt², 0.11 m/s in a second at 20 Hz), a
+            # traction held at 1.3–1.8 m/s² left the speed lagging past the odometer's gate,
+            # and once gated out the error outgrew σ until the traction ended.
+            density = self.unknown_input_sigma_mps2**2 * UNKNOWN_INPUT_HOLD_S
+            dt2 = dt_s * dt_s
+            self.kf.P[0, 0] += density * dt2 * dt_s / 3.0
+            self.kf.P[0, 1] += density * dt2 / 2.0
+            self.kf.P[1, 0] += density * dt2 / 2.0
+            self.kf.P[1, 1] += density * dt_s
 
     # -- measurements ----------------------------------------------------------------------
 

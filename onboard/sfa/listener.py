@@ -56,8 +56,9 @@ __all__ = [
 
 ALL_SENSORS = frozenset({"imu", "odometer", "gps"})
 DEAD_IMU_ACCELERATION_SIGMA_MPS2 = 0.5
-"""σ of the train's acceleration while the IMU is dead [m/s²]: the URV brakes at up to
-0.93 m/s² and accelerates at up to about 0.5 m/s² (docs/sfa.md)."""
+"""σ of the train's acceleration while the IMU is dead [m/s²], a white-noise density held for
+``filter.UNKNOWN_INPUT_HOLD_S``: the URV brakes at up to 0.93 m/s² and accelerates at up to
+about 1.8 m/s² (docs/sfa.md)."""
 _SENSOR_NAMES = {SensorType.IMU: "imu", SensorType.ODOMETER: "odometer", SensorType.GPS: "gps"}
 _MALFORMED_REASONS = {
     "TruncatedDatagramError": "truncated",

@@ -182,3 +182,25 @@ def test_the_odometers_counting_window_is_modelled(
         assert abs(late) < bias_limit_mps
     else:  # unmodelled, the lag shows as a speed read high (by up to 12.5 mm/s)
         assert 0.005 < late < bias_limit_mps
+
+
+def test_with_a_dead_imu_the_odometer_follows_the_traction(ring: TrackMap) -> None:
+    """A dead IMU: the prediction runs at constant speed and the unknown input must admit the
+    URV's traction (1.8 m/s² held for seconds), else the odometer's speeds are gated out and the
+    position runs on at the speed the train had (gen-1-52: 7.6 m behind)."""
+    flt = TrackKalmanFilter(ring)
+    flt.initialise(0.0, 10.0, 0.0)
+    flt.unknown_input_sigma_mps2 = 0.5  # what the listener sets while the IMU is dead
+    rng = np.random.default_rng(7)
+    window_s, sigma_mps = flt.config.odometer_window_s, 0.06
+    position, speed = 0.0, 10.0
+    for tick in range(1, 201):  # 10 s at 20 Hz: 4 s of traction, then coasting
+        acceleration = 1.8 if tick <= 80 else 0.0
+        position += speed * 0.05 + 0.5 * acceleration * 0.05**2
+        speed += acceleration * 0.05
+        mean_speed = speed - 0.5 * acceleration * window_s
+        flt.odometer(tick * 0.05, mean_speed + float(rng.normal(0.0, sigma_mps)), sigma_mps)
+        # No GPS here: the speed's lag behind the traction runs into the position (< 1 m).
+        assert flt.chainage_m == pytest.approx(position, abs=1.5)
+    assert flt.rejected["odometer"] <= 2
+    assert flt.speed_mps == pytest.approx(speed, abs=0.3)
