@@ -20,7 +20,9 @@ Measurements (docs/sensors.md gives the sensors' errors they model):
   carries their accuracy on for about τ.
 
 Each odometer and GPS update is gated on its normalised innovation squared (NIS = y² / S, χ²
-with one degree of freedom): above the gate it is rejected and counted. The scale error is
+with one degree of freedom): above the gate it is rejected and counted. An IMU sample whose
+acceleration (input less bias) lies outside the vehicle's envelope is gated out and counted
+too, the prediction keeping the last input. The scale error is
 learnt from the GPS and the balise groups against the IMU; without it a worn wheel's few per
 mille would pull the position along by metres a kilometre. With no odometer and no GPS the
 filter runs on the IMU alone, as the seed says, only worse: its σ grows and the health says
@@ -108,6 +110,16 @@ class FilterConfig:
         The interval the odometer counts its pulses over [s] (its sample period): its speed is
         the mean over that window, which lags the speed by half of it; 0 for a speed read at
         the instant.
+    imu_max_acceleration_mps2, imu_max_deceleration_mps2 : float
+        The along-track acceleration an IMU sample may give (its input less the estimated
+        bias), forwards and backwards [m/s²]: the URV accelerates at up to about 1.9 m/s² and
+        brakes at up to about 1.5 m/s²; 1 m/s² more covers the body's swings under wheel slip
+        (1.5 m/s² within 20 ms on the bogie model), the sensor's noise and the bias's and the
+        gradient's errors. A sample outside is gated out (counted, its input not taken). A
+        sample of 2 m/s² or more with one corrupted byte (an exponent bit) can read anything up
+        to the listener's 100 m/s² range check, as can one under 2 mm/s²; taken for 10 ms it
+        would change the speed by up to 1 m/s. (Between the two, one byte reads under 2 m/s² or
+        beyond 100 m/s².)
     """
 
     acceleration_noise_mps2: float = 0.05
@@ -127,6 +139,8 @@ class FilterConfig:
     gps_reanchor_after: int = 15
     gps_latency_s: float = 0.1
     odometer_window_s: float = 0.05
+    imu_max_acceleration_mps2: float = 2.9
+    imu_max_deceleration_mps2: float = 2.5
 
 
 def transition_matrices(
@@ -193,8 +207,8 @@ class TrackKalmanFilter:
         """σ of an acceleration no sensor measures [m/s²]: set while the IMU is dead, so that the
         prediction (then at constant speed) admits the train's braking and traction and the
         odometer's speeds are not gated out as the train slows or speeds up."""
-        self.rejected = {"odometer": 0, "gps": 0}
-        self.accepted = {"odometer": 0, "gps": 0, "fix": 0}
+        self.rejected = {"imu": 0, "odometer": 0, "gps": 0}
+        self.accepted = {"imu": 0, "odometer": 0, "gps": 0, "fix": 0}
         self.reanchored = 0
         """GPS fixes taken after ``gps_reanchor_after`` rejections in a row."""
         self._gps_rejections_in_row = 0
@@ -276,11 +290,24 @@ class TrackKalmanFilter:
         gradient = self.track_map.gradient_permille(float(self.kf.x[0, 0]))
         return acc_x_mps2 - GRAVITY_MPS2 * math.sin(math.atan(gradient / 1000.0))
 
-    def imu(self, epoch_s: float, acc_x_mps2: float) -> None:
-        """Predict to ``epoch_s`` with this IMU sample's forward specific force as the input."""
+    def imu(self, epoch_s: float, acc_x_mps2: float) -> bool:
+        """Predict to ``epoch_s`` with this IMU sample's forward specific force as the input;
+        False when the sample is gated out (an acceleration outside the vehicle's envelope):
+        the prediction then keeps the last input."""
         self._require()
-        self.last_input_mps2 = self.forward_specific_force_to_input(acc_x_mps2)
+        input_mps2 = self.forward_specific_force_to_input(acc_x_mps2)
+        config = self.config
+        acceleration = input_mps2 - float(self.kf.x[2, 0])
+        accepted = (
+            -config.imu_max_deceleration_mps2 <= acceleration <= config.imu_max_acceleration_mps2
+        )
+        if accepted:
+            self.last_input_mps2 = input_mps2
+            self.accepted["imu"] += 1
+        else:
+            self.rejected["imu"] += 1
         self.predict_to(epoch_s)
+        return accepted
 
     def predict_to(self, epoch_s: float) -> None:
         """Predict from the filter's epoch to ``epoch_s`` with the last input; never backwards."""

@@ -14,7 +14,10 @@ counting that sensor's packets since that STROBE. Under loss a plain count lags 
 are not counted, a lost STROBE lets the lag grow), so k is the larger of the count and a
 conservative bound from the SEQ_NO distance n to the STROBE, ⌊n · rate / N⌋ − 2, where
 N = 1 + Σ rates is the most packets a second of sensor time can carry. Without loss the count
-is exact and the bound never exceeds it (docs/sfa.md, "Time under loss").
+is exact and the bound never exceeds it (docs/sfa.md, "Time under loss"). A STROBE off the
+schedule of the last one (not the whole number of seconds after it that its SEQ_NO distance
+spans) sets the time base only once the next STROBE confirms it: one corrupted byte of its time
+would otherwise move every epoch of its second.
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ from onboard.sfa.reorder import ReorderBuffer
 from onboard.sfa.status import (
     MAX_STROBE_BACKWARDS_S,
     MAX_STROBE_GAP_S,
+    STROBE_PERIOD_S,
+    STROBE_TOLERANCE_S,
     Health,
     ListenerCounters,
     SfaStatus,
@@ -120,6 +125,7 @@ class ListenerCore:
             depth=self.config.reorder_depth, max_wait_s=self.config.reorder_max_wait_s
         )
         self.counters = ListenerCounters()
+        self._misplaced_counted = 0
         self.stopped = False
         self.status: SfaStatus | None = None
         self._periods_s = {
@@ -129,6 +135,9 @@ class ListenerCore:
         }
         self._strobe_s = 0.0
         self._strobe_seq: int | None = None
+        self._strobe_candidate: tuple[float, int] | None = None
+        """(time, SEQ_NO) of the last STROBE dropped as off schedule: the next STROBE on its
+        schedule confirms the new time base."""
         self._rebase_pending = True
         self._packets_per_s = 1.0 + sum(1.0 / period for period in self._periods_s.values())
         self._since_strobe = {SensorType.IMU: 0, SensorType.ODOMETER: 0, SensorType.GPS: 0}
@@ -206,9 +215,10 @@ class ListenerCore:
         self._last_ack_arrival_s = arrival_s
 
     def filter_counters(self) -> dict[str, int]:
-        """What the filter did with the measurements: odometer and GPS updates accepted and
-        gated out (``*_rejected``; a GPS fix off the track counts there too), GPS fixes taken
-        after a run of rejections (``gps_reanchored``), balise-group fixes (``fix_accepted``)."""
+        """What the filter did with the measurements: IMU samples, odometer and GPS updates
+        accepted and gated out (``*_rejected``; a GPS fix off the track counts there too), GPS
+        fixes taken after a run of rejections (``gps_reanchored``), balise-group fixes
+        (``fix_accepted``)."""
         flt = self.filter
         counters = {f"{name}_accepted": count for name, count in flt.accepted.items()}
         counters |= {f"{name}_rejected": count for name, count in flt.rejected.items()}
@@ -224,7 +234,15 @@ class ListenerCore:
 
     # -- processing ------------------------------------------------------------------------
 
+    def _count_misplaced(self) -> None:
+        """Count as dropped the packets the reorder buffer refused on their turn."""
+        misplaced = self.buffer.misplaced - self._misplaced_counted
+        if misplaced:
+            self.counters.dropped["misplaced"] += misplaced
+            self._misplaced_counted = self.buffer.misplaced
+
     def _release(self, packets: list[InputPacket]) -> list[bytes]:
+        self._count_misplaced()
         outputs: list[bytes] = []
         for packet in packets:
             if self.stopped:
@@ -235,6 +253,7 @@ class ListenerCore:
             outputs.extend(self._outputs_due(force=self.stopped))
         if self.stopped and len(self.buffer):
             self.counters.dropped["after_stop"] += len(self.buffer.flush())
+            self._count_misplaced()
         return outputs
 
     def _epoch(self, sensor_type: SensorType, seq_no: int) -> float:
@@ -252,12 +271,7 @@ class ListenerCore:
         counters = self.counters
         if sensor_type is SensorType.STROBE:
             strobe_s = packet.doubles[0]
-            if not self._rebase_pending and not (
-                self._strobe_s - MAX_STROBE_BACKWARDS_S
-                <= strobe_s
-                <= self._strobe_s + MAX_STROBE_GAP_S
-            ):
-                counters.dropped["invalid_value"] += 1
+            if not self._rebase_pending and not self._strobe_accepted(strobe_s, packet.seq_no):
                 return
             if self._rebase_pending and self.filter.initialised:
                 # The first STROBE after a GROUND_TRUTH sets the time base of the new run.
@@ -266,6 +280,7 @@ class ListenerCore:
             self._rebase_pending = False
             self._strobe_s = strobe_s
             self._strobe_seq = packet.seq_no
+            self._strobe_candidate = None
             for key in self._since_strobe:
                 self._since_strobe[key] = 0
             counters.processed["strobe"] += 1
@@ -287,8 +302,9 @@ class ListenerCore:
             counters.disabled += 1
             return
         if sensor_type is SensorType.IMU:
-            self.filter.imu(epoch_s, packet.doubles[0])
-            self._last_seen_s["imu"] = epoch_s
+            # A sample gated out does not keep the IMU alive: it counts as not heard.
+            if self.filter.imu(epoch_s, packet.doubles[0]):
+                self._last_seen_s["imu"] = epoch_s
         elif sensor_type is SensorType.ODOMETER:
             speed_mps, sigma_mps = packet.doubles
             self._odometer(epoch_s, speed_mps, sigma_mps)
@@ -299,12 +315,45 @@ class ListenerCore:
         counters.processed[name] += 1
         self._update_status()
 
+    def _on_schedule(self, strobe_s: float, seq_no: int, reference: tuple[float, int]) -> bool:
+        """Whether a STROBE lies a whole number of periods after the ``reference`` STROBE (time,
+        SEQ_NO), that number being the periods its SEQ_NO distance spans at the full rate (at
+        least one: a sender with sensors silent sends fewer packets a second)."""
+        reference_s, reference_seq = reference
+        periods = max(1, round((seq_no - reference_seq) % SEQ_MODULO / self._packets_per_s))
+        return abs(strobe_s - reference_s - periods * STROBE_PERIOD_S) <= STROBE_TOLERANCE_S
+
+    def _strobe_accepted(self, strobe_s: float, seq_no: int) -> bool:
+        """Whether a STROBE may set the time base; counts it as dropped when it may not.
+
+        Beyond 1 s backwards or 600 s forwards it is ``invalid_value``. Off the schedule of the
+        last STROBE (a corrupted time, which a single byte makes anything up to that, or a
+        sender whose clock stepped) it is ``strobe_unconfirmed`` and remembered: the next
+        STROBE on the schedule of the remembered one confirms the new time base, the next on
+        the old schedule refutes it. Until then the epochs run on from the last STROBE, as when
+        a STROBE is lost."""
+        counters = self.counters
+        if not (
+            self._strobe_s - MAX_STROBE_BACKWARDS_S <= strobe_s <= self._strobe_s + MAX_STROBE_GAP_S
+        ):
+            counters.dropped["invalid_value"] += 1
+            return False
+        assert self._strobe_seq is not None  # a STROBE has set the base
+        if self._on_schedule(strobe_s, seq_no, (self._strobe_s, self._strobe_seq)):
+            return True
+        candidate, self._strobe_candidate = self._strobe_candidate, (strobe_s, seq_no)
+        if candidate is not None and self._on_schedule(strobe_s, seq_no, candidate):
+            return True
+        counters.dropped["strobe_unconfirmed"] += 1
+        return False
+
     def _initialise(self, packet: InputPacket) -> None:
         velocity_x, velocity_y, velocity_z, chainage_km = packet.doubles
         speed_mps = math.copysign(math.hypot(velocity_x, velocity_y, velocity_z), velocity_x)
         epoch_s = self._strobe_s
         self.filter.initialise(chainage_km * 1000.0, speed_mps, epoch_s)
         self._rebase_pending = True
+        self._strobe_candidate = None
         self._last_seen_s = {"imu": epoch_s, "odometer": epoch_s}
         self._odometer_rejections = 0
         self._odometer_failed_at_s = None

@@ -4,8 +4,16 @@ SEQ_NO is a uint16 that wraps, so order is modular: a packet is *ahead* of the n
 number when its distance ``(seq − next) mod 65536`` is under half the range, *behind* otherwise.
 A packet behind is dropped: a ``duplicate`` if it was released recently (or is already waiting),
 ``late`` otherwise. A packet ahead waits until the gap before it fills, or until the buffer holds
-more than ``depth`` packets, or until the oldest waiting packet has waited ``max_wait_s``: the
-gap is then declared lost (counted) and release resumes at the next number held.
+more than ``depth`` packets, or until ``max_wait_s`` have passed since the oldest waiting packet
+arrived and since the last packet released had: the gap is then declared lost (counted) and
+release resumes at the next number held. The second clause keeps a packet that arrived ahead
+of packets still coming in order (a SEQ_NO corrupted a few numbers ahead) from having the gap
+before it given up while that gap is filling, the packets of the gap then all ``late``. When its
+turn comes, a packet that arrived more than ``max_wait_s`` before a packet released ahead of it
+is **misplaced** (counted, not released, its number left open for the genuine packet): the
+buffer tolerates no more reordering than that, so its SEQ_NO is not its own. A SEQ_NO corrupted
+fewer numbers ahead than arrive in ``max_wait_s`` (6 at 122 packets a second) is released in
+its place, the genuine packet of that number then being a ``duplicate``.
 
 A packet more than ``window`` (2 × depth) ahead is ``out_of_window`` unless the packet that
 arrived before it was out of the window too and at most ``depth`` behind it (a duplicate does
@@ -48,12 +56,17 @@ class ReorderBuffer(Generic[T]):
         self.next_seq: int | None = None
         self.lost = 0
         """Sequence numbers declared lost when a gap was given up."""
+        self.misplaced = 0
+        """Packets refused on their turn: they arrived more than ``max_wait_s`` before a packet
+        released ahead of them."""
         self._waiting: dict[int, tuple[T, float]] = {}
         self._recent: deque[int] = deque(maxlen=256)
         self._recent_set: set[int] = set()
         self._far_seq: int | None = None
         """SEQ_NO of the last packet that arrived out of the window, while no packet since has
         arrived in it."""
+        self._released_arrival_s = -float("inf")
+        """Latest arrival time of a packet released: a gap is waited for from there too."""
 
     def __len__(self) -> int:
         return len(self._waiting)
@@ -65,6 +78,7 @@ class ReorderBuffer(Generic[T]):
         self._recent.clear()
         self._recent_set.clear()
         self._far_seq = None
+        self._released_arrival_s = -float("inf")
         return flushed
 
     def distance(self, seq_no: int) -> int:
@@ -108,13 +122,19 @@ class ReorderBuffer(Generic[T]):
             entry = waiting.pop(seq_no, None)
             if entry is None:
                 oldest_s = min(arrival for _, arrival in waiting.values())
-                if len(waiting) <= self.depth and now_s - oldest_s < self.max_wait_s:
+                since_s = max(oldest_s, self._released_arrival_s)
+                if len(waiting) <= self.depth and now_s - since_s < self.max_wait_s:
                     break
                 skip = min((key - seq_no) % SEQ_MODULO for key in waiting)
                 self.lost += skip
                 self.next_seq = (seq_no + skip) % SEQ_MODULO
                 continue
-            released.append(entry[0])
+            item, arrival_s = entry
+            if arrival_s < self._released_arrival_s - self.max_wait_s:
+                self.misplaced += 1
+                continue
+            released.append(item)
+            self._released_arrival_s = max(self._released_arrival_s, arrival_s)
             self._mark_released(seq_no)
             self.next_seq = (seq_no + 1) % SEQ_MODULO
         return released

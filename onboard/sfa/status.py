@@ -16,6 +16,8 @@ from protocol.udp import InputPacket, SensorType
 __all__ = [
     "MAX_STROBE_BACKWARDS_S",
     "MAX_STROBE_GAP_S",
+    "STROBE_PERIOD_S",
+    "STROBE_TOLERANCE_S",
     "Health",
     "ListenerCounters",
     "SfaStatus",
@@ -28,6 +30,11 @@ of up to ten minutes is not)."""
 MAX_STROBE_BACKWARDS_S = 1.0
 """A STROBE this far behind the last one [s] is dropped, unless a GROUND_TRUTH restarted the
 run (a restarted sender sends GROUND_TRUTH first)."""
+STROBE_PERIOD_S = 1.0
+"""The sender's STROBE period [s] (CONTRACT.md §3: "sent once a second")."""
+STROBE_TOLERANCE_S = 0.02
+"""How far a STROBE may lie from a whole number of periods after the last one [s] and still be
+on schedule (two IMU periods: the sequence-number bound on the epoch trails by as much)."""
 MAX_ACCELERATION_MPS2 = 100.0
 MAX_ANGULAR_RATE_RADPS = 35.0
 MAX_SPEED_MPS = 150.0

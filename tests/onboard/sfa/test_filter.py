@@ -3,6 +3,8 @@ balise fixes, ring unwrapping."""
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 import pytest
 from filterpy.kalman import KalmanFilter
@@ -117,7 +119,7 @@ def test_the_odometer_scale_error_is_learnt_against_the_gps(ring: TrackMap) -> N
     assert flt.odometer_scale_error == pytest.approx(0.02, abs=0.001)
     assert flt.speed_mps == pytest.approx(speed_mps, abs=0.02)
     assert flt.chainage_m == pytest.approx(start_m + speed_mps * 120.0, abs=0.5)
-    assert flt.rejected == {"odometer": 0, "gps": 0}
+    assert flt.rejected == {"imu": 0, "odometer": 0, "gps": 0}
 
 
 def test_a_multipath_jump_is_gated_and_a_lasting_shift_reanchors(ring: TrackMap) -> None:
@@ -204,3 +206,22 @@ def test_with_a_dead_imu_the_odometer_follows_the_traction(ring: TrackMap) -> No
         assert flt.chainage_m == pytest.approx(position, abs=1.5)
     assert flt.rejected["odometer"] <= 2
     assert flt.speed_mps == pytest.approx(speed, abs=0.3)
+
+
+def test_an_imu_sample_outside_the_vehicles_envelope_is_gated_out(ring: TrackMap) -> None:
+    """One corrupted byte (an exponent bit) turns 2.2 m/s² into 35.5 m/s², within the
+    listener's 100 m/s² range check: taken as the input for 10 ms it would add 0.33 m/s."""
+    flt = TrackKalmanFilter(ring)
+    flt.initialise(0.0, 10.0, 0.0)
+    gravity = 9.81 * float(np.sin(np.arctan(2.0 / 1000.0)))  # the first straight: 2 ‰
+    corrupted = bytearray(struct.pack("<d", 2.2 + gravity))
+    corrupted[6] ^= 0x40
+    spike = struct.unpack("<d", corrupted)[0]
+    assert spike == pytest.approx(35.5, abs=0.1)
+    for tick in range(1, 101):
+        accepted = flt.imu(tick * 0.01, spike if tick == 50 else 2.2 + gravity)
+        assert accepted is (tick != 50)
+    assert flt.rejected["imu"] == 1 and flt.accepted["imu"] == 99
+    assert flt.speed_mps == pytest.approx(12.2, abs=1e-6)
+    for braking, accepted in ((-1.5, True), (-3.0, False), (2.5, True), (3.5, False)):
+        assert flt.imu(flt.epoch_s + 0.01, braking + gravity) is accepted

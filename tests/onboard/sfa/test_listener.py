@@ -107,6 +107,71 @@ def test_a_corrupted_seq_no_far_ahead_is_dropped_and_moves_nothing(ring: TrackMa
     assert core.filter.epoch_s == pytest.approx(10.37)
 
 
+def one_second(seq: int, strobe_s: float, *, strobe: bool = True) -> list[bytes]:
+    """A second of the sender's packets from ``seq`` on: its STROBE (unless lost), then 100
+    IMU and 20 odometer packets interleaved as the interface-modules send them (no GPS)."""
+    stream = [packet(SensorType.STROBE, seq, strobe_s)] if strobe else []
+    for tick in range(100):
+        stream.append(packet(SensorType.IMU, seq + len(stream) + (not strobe), *IMU_LEVEL))
+        if tick % 5 == 0:
+            stream.append(packet(SensorType.ODOMETER, seq + len(stream) + (not strobe), 0.0, 0.05))
+    return stream
+
+
+def feed_seconds(core: ListenerCore, seconds: list[tuple[float, float, bool]]) -> list[float]:
+    """Feed whole seconds (their sender time, the STROBE's time, whether it arrives), the
+    first from SEQ_NO 1 after a GROUND_TRUTH; returns the filter's epoch after each."""
+    epochs = []
+    for second_s, strobe_s, arrives in seconds:
+        seq = 1 + 121 * round(second_s - seconds[0][0])
+        for index, datagram in enumerate(one_second(seq, strobe_s, strobe=arrives)):
+            core.feed(datagram, second_s + 0.008 * index)
+        epochs.append(core.filter.epoch_s)
+    return epochs
+
+
+def test_a_strobe_off_schedule_is_dropped_until_the_next_strobe_confirms_it(
+    ring: TrackMap,
+) -> None:
+    """A STROBE's time corrupted 0.84 s forwards (one mantissa byte; gen-1-26 at 54 s) moved
+    every epoch of its second ahead: the filter predicted 0.84 s with the last acceleration and
+    the odometer was gated out for good. Off its schedule (a whole number of seconds after the
+    last STROBE, as many as its SEQ_NO distance spans) it is now dropped, the epochs run on
+    from the last STROBE, and the next STROBE on schedule is taken (after a lost one too)."""
+    core = ListenerCore(ring)
+    core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
+    epochs = feed_seconds(core, [(10.0, 10.0, True), (11.0, 11.84375, True), (12.0, 12.0, True),
+                                 (13.0, 13.0, False), (14.0, 14.0, True),
+                                 # The sender's clock steps: followed from its second STROBE.
+                                 (15.0, 500.0, True), (16.0, 501.0, True)])  # fmt: skip
+    assert epochs == pytest.approx([10.99, 11.99, 12.99, 13.99, 14.99, 15.99, 501.99], abs=0.015)
+    assert core.counters.dropped == {"strobe_unconfirmed": 2}
+    assert core.counters.processed["strobe"] == 4
+
+
+def test_a_seq_no_corrupted_ahead_within_the_window_is_misplaced_not_processed(
+    ring: TrackMap,
+) -> None:
+    """An IMU packet's SEQ_NO read 26 numbers ahead (one byte): processed in that place it
+    would have been a sample 0.2 s old, or, across a STROBE, one count too many for the rest
+    of the second. It waits for its turn and is refused: it arrived 0.2 s before the packets
+    ahead of it in the sequence, more than the reorder buffer waits for anything."""
+    core = ListenerCore(ring)
+    core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
+    stream = one_second(1, 10.0)
+    corrupted = bytearray(stream[40])
+    assert corrupted[0] == SensorType.IMU
+    corrupted[1] += 26  # the SEQ_NO's low byte
+    stream[40] = bytes(corrupted)
+    for index, datagram in enumerate(stream):
+        core.feed(datagram, 10.0 + 0.008 * index)
+    core.poll(12.0)
+    assert core.counters.dropped == {"misplaced": 1}
+    assert core.counters.processed["imu"] == 99 and core.buffer.lost == 1
+    assert core.counters.accounted(len(core.buffer)) == core.counters.received
+    assert core.filter.epoch_s == pytest.approx(10.98)  # one IMU short, as for any loss
+
+
 def test_reordered_packets_are_processed_in_order(ring: TrackMap) -> None:
     core = ListenerCore(ring)
     stream = [packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0)]
@@ -159,8 +224,9 @@ def test_imu_alone_is_degraded_and_a_silent_imu_and_odometer_is_lost(ring: Track
     everything.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
     everything.feed(packet(SensorType.STROBE, 1, 0.0), 0.0)
     everything.feed(packet(SensorType.IMU, 2, *IMU_LEVEL), 0.0)
-    everything.feed(packet(SensorType.STROBE, 3, 5.0), 0.0)
-    everything.feed(packet(SensorType.GPS, 4, 44.512, 11.318, 42.0), 0.0)
+    for second in range(1, 6):  # the IMU and the odometer silent: STROBEs alone, once a second
+        everything.feed(packet(SensorType.STROBE, 2 + second, float(second)), 0.0)
+    everything.feed(packet(SensorType.GPS, 8, 44.512, 11.318, 42.0), 0.0)
     assert everything.status is not None and everything.status.health is Health.LOST
 
 
@@ -222,6 +288,6 @@ def test_the_filters_gating_is_counted_for_the_listeners_user(ring: TrackMap) ->
     core.feed(packet(SensorType.GPS, 4, latitude, longitude, 0.0), 0.1)
     core.poll(1.0)
     assert core.filter_counters() == {
-        "odometer_accepted": 1, "odometer_rejected": 1, "gps_accepted": 0, "gps_rejected": 1,
-        "fix_accepted": 0, "gps_reanchored": 0,
+        "imu_accepted": 0, "imu_rejected": 0, "odometer_accepted": 1, "odometer_rejected": 1,
+        "gps_accepted": 0, "gps_rejected": 1, "fix_accepted": 0, "gps_reanchored": 0,
     }  # fmt: skip

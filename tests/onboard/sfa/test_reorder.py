@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -54,3 +55,33 @@ def test_any_shuffle_within_the_depth_comes_out_in_order(order: list[int], start
         assert buffer.push(seq, offset, 0.0) is None
         released += buffer.pop_ready(0.0)
     assert released == list(range(12))
+
+
+@pytest.mark.parametrize(
+    ("ahead", "refused", "order"),
+    [
+        # 26 ahead: it waits while 11..35 arrive, then is misplaced; the genuine 36 follows.
+        (26, [], [*range(10), *range(11, 41)]),
+        # 3 ahead (under 50 ms of packets): released in 13's place, the genuine 13 a duplicate.
+        (3, ["duplicate"], [*range(10), 11, 12, 10, *range(14, 41)]),
+    ],
+)
+def test_a_seq_no_corrupted_a_few_numbers_ahead_costs_one_number_not_the_gap(
+    ahead: int, refused: list[str], order: list[int]
+) -> None:
+    """Packet 10's SEQ_NO reads 10 + ``ahead`` (one byte corrupted), packets arriving every
+    8 ms. Before, the gap after 10 was given up 50 ms after the corrupted packet arrived, it was
+    released and what was left of the gap came ``late``."""
+    buffer: ReorderBuffer[int] = ReorderBuffer(depth=16, max_wait_s=0.05)
+    released: list[int] = []
+    outcomes: list[str] = []
+    for seq in range(41):
+        arrival_s = 0.008 * seq
+        outcome = buffer.push(10 + ahead if seq == 10 else seq, seq, arrival_s)
+        if outcome is not None:
+            outcomes.append(outcome)
+        released += buffer.pop_ready(arrival_s)
+    released += buffer.pop_ready(1.0)
+    assert outcomes == refused
+    assert released == order
+    assert (buffer.lost, buffer.misplaced) == (1, 1 if ahead == 26 else 0)
