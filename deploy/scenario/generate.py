@@ -81,9 +81,12 @@ RESTORE_BEHIND_M = 200.0
 """A restored MA ends this far behind the shortened stop, nearly a lap ahead on a ring [m]."""
 FALLBACK_FAULTS = ("zenoh_link_loss", "ato_failure", "vigilance_absent")
 """Faults that can end in a fallback stop, after which the operator engages ATO again."""
-CLOSED_UP_M = 15.0
+CLOSED_UP_M = 9.0
 """ETCS's distance to an EoA short of the stop under which the train has closed up to it [m]:
-the RBC gives the route back then."""
+the RBC gives the route back then. Standing d before the EoA, the ADF closes up while its stop
+(5 m + 6 % of d before the EoA) is 3 m or more closer, so once closed up d < 8.5 m; at 15 m the
+route came back at the first standstill, before the train had closed up (10.03 m on the truth
+in a generated run)."""
 
 
 @dataclass(frozen=True)
