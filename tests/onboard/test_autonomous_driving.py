@@ -64,3 +64,48 @@ def test_jerk_while_moving(record: ClosedLoopRecord) -> None:
     speeds = record.speeds_mps
     moving = (speeds[1:] > 0.2) & (speeds[:-1] > 0.2)  # the instant of stopping excluded
     assert float(np.abs(jerk[moving]).max()) <= 1.0
+
+
+def _plain_driving() -> tuple[object, object]:
+    from onboard.adf.autonomous import AutonomousDriving
+
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    plan = plan_legs(ring, start_chainage_m=START_M, stops=STOPS, cap_mps=CAP_MPS)
+    return plan, AutonomousDriving(plan, URV_PARAMETERS, NmpcController(URV_PARAMETERS))
+
+
+def test_the_reference_asks_only_for_what_the_train_can_do() -> None:
+    """Far behind its plan, the position reference leads the train by at most what it can run;
+    every speed reference stays under its ceiling, the ceilings under the cap less the measured
+    speed's under-read (issue 18: a lead of 100 m made the NLP fail)."""
+    from onboard.adf.autonomous import CEILING_MARGIN_MPS, ESTIMATE_MARGIN_MPS, LEAD_M
+    from onboard.adf.odp import SPEED_UNDERREAD_SHARE
+
+    plan, driving = _plain_driving()
+    planned_m, planned_mps = plan.reference(150.0)  # type: ignore[attr-defined]
+    assert planned_mps > 5.0  # cruising
+    behind_m = planned_m - 100.0
+    reference = driving.reference(150.0, speed_mps=2.0, distance_m=behind_m)  # type: ignore[attr-defined]
+    steps = np.arange(1, len(reference.position_m) + 1) * 0.2
+    runnable_m = np.cumsum(np.minimum(reference.max_speed_mps, 2.0 + 1.0 * steps)) * 0.2
+    assert np.all(reference.position_m <= behind_m + LEAD_M + runnable_m + 1e-9)
+    assert reference.position_m[0] - behind_m < 5.0
+    assert np.all(reference.speed_mps <= reference.max_speed_mps - CEILING_MARGIN_MPS + 1e-9)
+    cap = CAP_MPS * (1.0 - SPEED_UNDERREAD_SHARE) - ESTIMATE_MARGIN_MPS
+    assert np.all(reference.max_speed_mps <= cap + 1e-9)
+    on_plan = driving.reference(150.0, speed_mps=planned_mps, distance_m=planned_m)  # type: ignore[attr-defined]
+    plain = driving.reference(150.0)  # type: ignore[attr-defined]
+    np.testing.assert_allclose(on_plan.position_m, plain.position_m)  # on its plan: untouched
+
+
+def test_the_final_approach_brakes_to_the_point_when_faster_than_the_plan() -> None:
+    """In the plan's final braking, a train faster than its braking curve into the stop has its
+    demand capped at the braking that stops it there; one on the curve is left to the NMPC."""
+    plan, driving = _plain_driving()
+    arrival_s = STOPS[0][1]
+    now_s = arrival_s - 8.0
+    distance_m, speed_mps = plan.reference(now_s)  # type: ignore[attr-defined]
+    driving.stopping_force_n(now_s - 0.2, distance_m, speed_mps)  # type: ignore[attr-defined]
+    assert driving.stopping_force_n(now_s, distance_m, speed_mps - 0.5) == np.inf  # type: ignore[attr-defined]
+    force = driving.stopping_force_n(now_s, distance_m, speed_mps + 1.0)  # type: ignore[attr-defined]
+    assert -URV_PARAMETERS.max_brake_force_n <= force < 0.0
