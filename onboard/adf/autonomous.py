@@ -19,7 +19,7 @@ import numpy.typing as npt
 from onboard.adf.nmpc import NmpcController, NmpcReference, NmpcResult
 from onboard.adf.odp import MAX_ACCELERATION_MPS2, SPEED_UNDERREAD_SHARE, OdpPlan
 from onboard.plant.point_mass import CURVE_COEFFICIENT_M, PointMassParameters
-from protocol.units import GRAVITY_MPS2
+from protocol.units import GRAVITY_MPS2, MPS_PER_KMH
 
 __all__ = ["AutonomousDriving"]
 
@@ -34,10 +34,10 @@ close, and its NLP, dominated by that error, does not converge (the ADF re-times
 train has fallen far behind)."""
 CATCH_UP_MPS2 = MAX_ACCELERATION_MPS2
 """The plans' highest acceleration: a train keeping up with its plan is never held back."""
-ESTIMATE_MARGIN_MPS = 0.1 / 3.6
+ESTIMATE_MARGIN_MPS = 0.1 * MPS_PER_KMH
 """Each ceiling is held this much lower as well [m/s]: the fused speed's error beyond the
 odometer's calibration (a train catching up its reference runs on the ceiling)."""
-CEILING_MARGIN_MPS = 0.1 / 3.6
+CEILING_MARGIN_MPS = 0.1 * MPS_PER_KMH
 """The speed reference is held this far under each stage's ceiling [m/s] (with the estimate's
 margin, where the plans hold it: 0.2 km/h under the limit less the under-read share): a
 reference on (or above) a ceiling makes the NLP degenerate."""

@@ -19,13 +19,13 @@ new permitted speed); IPOPT can be chosen for comparison.
 The solve time is bounded by construction: at most ``max_iterations`` SQP iterations
 (``max_cold_iterations`` from a cold start) of at most ``max_qp_iterations`` QP iterations
 each. Near an active constraint (cruising just under a ceiling) the SQP's primal residual can
-stall at about 1e-5 without meeting a tighter tolerance,
-so the tolerances are 1e-4 in the NLP's units (m, m/s, kN: a tenth of a millimetre, of a mm/s, of
-a newton); an iterate that did not converge but meets every constraint within 1e-2 is used
-(counted as not converged). Otherwise the step falls back to a safe control law, counted as a
-failure: full service braking above the ceiling, else a proportional speed law onto the lower of
-the reference and the ceiling, with the resistance and track forces fed forward; its demand
-changes at most by the NMPC's own rate bound a step.
+stall at about 1e-5 without meeting a tighter tolerance, so the tolerances are 1e-4 in the
+NLP's units (m, m/s, kN: a tenth of a millimetre, of a mm/s, of a newton); an iterate that did
+not converge but meets every constraint within 1e-2 is used (counted as not converged).
+Otherwise the step falls back to a safe control law, counted as a failure: full service braking
+above the ceiling, else a proportional speed law onto the lower of the reference and the
+ceiling, with the resistance and track forces fed forward; its demand changes at most by the
+NMPC's own rate bound a step.
 """
 
 from __future__ import annotations
@@ -135,8 +135,12 @@ class NmpcController:
         self.config = config or NmpcConfig()
         self.stats = NmpcStats()
         self._step = self._dynamics()
-        self._solver, self._bounds = self._build(self.config.max_iterations)
-        self._cold_solver, _ = self._build(self.config.max_cold_iterations)
+        problem, self._bounds = self._build()
+        # One NLP, two iteration caps: casadi fixes a solver's options when it is made.
+        self._solver, self._cold_solver = (
+            ca.nlpsol("nmpc", self.config.solver, problem, _solver_options(self.config, cap))
+            for cap in (self.config.max_iterations, self.config.max_cold_iterations)
+        )
         n = self.config.horizon_steps
         self._guess: FloatArray | None = None
         self._variables = STATE_SIZE * (n + 1) + n
@@ -167,7 +171,8 @@ class NmpcController:
         end = start + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         return ca.Function("step", [state, increment, track], [end])
 
-    def _build(self, max_iterations: int) -> tuple[ca.Function, dict[str, ca.DM]]:
+    def _build(self) -> tuple[dict[str, Any], dict[str, ca.DM]]:
+        """The NLP (for ``ca.nlpsol``) and its bounds."""
         c, m, n = self.config, self.model, self.config.horizon_steps
         step = self._step
         states = ca.SX.sym("X", STATE_SIZE, n + 1)
@@ -213,8 +218,7 @@ class NmpcController:
             "ubg": upper,
         }
         # Converted once: casadi converts Python lists element by element at every call.
-        solver = ca.nlpsol("nmpc", c.solver, problem, _solver_options(c, max_iterations))
-        return solver, {key: ca.DM(values) for key, values in bounds.items()}
+        return problem, {key: ca.DM(values) for key, values in bounds.items()}
 
     def reset(self) -> None:
         """Forget the warm start and the previous plan (after a mode change)."""

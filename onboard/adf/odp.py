@@ -31,9 +31,9 @@ __all__ = [
     "LspbSegment",
     "OdpLeg",
     "OdpPlan",
+    "held_under",
     "leg_speed_limit_mps",
     "lspb_segment",
-    "held_under",
     "plan_legs",
 ]
 
