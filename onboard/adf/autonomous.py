@@ -62,6 +62,7 @@ class AutonomousDriving:
         self.last_result: NmpcResult | None = None
         self.permitted_speed_mps = math.inf
         """The ETCS permitted speed [m/s], a ceiling over the whole horizon."""
+        self._sampled: tuple[float, list[float], list[float]] | None = None
         self._final_braking_mps2: float | None = None
         """The plan's deceleration into the stop the reference comes to rest at [m/s²]."""
 
@@ -78,11 +79,7 @@ class AutonomousDriving:
         vehicle cannot meet would make the NLP infeasible; ETCS supervises beyond). With the
         measured ``distance_m``, the positions lead it by at most :data:`LEAD_M` plus what the
         ceilings let the train run."""
-        positions, speeds = [], []
-        for t in now_s + self._offsets_s:
-            distance, speed = self.plan.reference(float(t))
-            positions.append(distance)
-            speeds.append(speed)
+        positions, speeds = self._horizon(now_s)
         targets = np.array(positions)
         ceilings = self._ceilings(targets, speed_mps)
         if distance_m is not None and speed_mps is not None:
@@ -94,6 +91,14 @@ class AutonomousDriving:
         speeds_mps = np.minimum(np.array(speeds), np.maximum(ceilings - CEILING_MARGIN_MPS, 0.0))
         forces = [self._track_force_n(self.plan.chainage_m(float(d))) for d in targets]
         return NmpcReference(targets, speeds_mps, ceilings, np.array(forces))
+
+    def _horizon(self, now_s: float) -> tuple[list[float], list[float]]:
+        """The plan's distances and speeds at the horizon's stages from ``now_s``, sampled once
+        a step for the reference and the final approach's cap."""
+        if self._sampled is None or self._sampled[0] != now_s:
+            samples = [self.plan.reference(float(t)) for t in now_s + self._offsets_s]
+            self._sampled = (now_s, [d for d, _ in samples], [v for _, v in samples])
+        return self._sampled[1], self._sampled[2]
 
     def _ceilings(self, positions: npt.NDArray[np.float64],
                   speed_mps: float | None) -> npt.NDArray[np.float64]:  # fmt: skip
@@ -154,8 +159,7 @@ class AutonomousDriving:
         The NMPC's model, made for motion, would roll back under a brake held to standstill, so
         it eases the brake off a few seconds early, and the train, which the real brake stops
         and holds, ran about 0.2·a s² past its stop: 0.06–0.14 m at the plans' 0.35–0.7 m/s²."""
-        times = now_s + self._offsets_s
-        speeds = [self.plan.reference(float(t))[1] for t in times]
+        positions, speeds = self._horizon(now_s)
         if speeds[-1] > 0.0:
             self._final_braking_mps2 = None
             return math.inf
@@ -165,7 +169,7 @@ class AutonomousDriving:
         braking = self._final_braking_mps2
         if braking is None or speed_mps < STANDSTILL_MPS:
             return math.inf
-        remaining_m = self.plan.reference(float(times[-1]))[0] - distance_m
+        remaining_m = positions[-1] - distance_m
         if remaining_m <= 0.0:
             return -self.model.max_brake_force_n
         needed_mps2 = speed_mps * speed_mps / (2.0 * remaining_m)
