@@ -132,10 +132,15 @@ def onboard(
     stop = threading.Event()
     with stop_on_signals(stop):
         run_onboard(
-            vehicle, zenoh=ZenohSettings(connect=(zenoh,)), line_id=line, speed_factor=speed,
-            stop=stop, fidelity=fidelity,  # type: ignore[arg-type]
-            vc_replicas=vc_replicas, vc_datalog=None if no_vc_datalog else datalog,
-        )  # fmt: skip
+            vehicle,
+            zenoh=ZenohSettings(connect=(zenoh,)),
+            line_id=line,
+            speed_factor=speed,
+            stop=stop,
+            fidelity=fidelity,  # type: ignore[arg-type]
+            vc_replicas=vc_replicas,
+            vc_datalog=None if no_vc_datalog else datalog,
+        )
 
 
 @app.command()
@@ -158,9 +163,16 @@ def up(
     from deploy.up import UpPlan, run_up
 
     stop = threading.Event()
-    plan = UpPlan(vehicles=vehicles, line=line, port=port, router_port=router_port,
-                  data_dir=data_dir, database=database, speed=speed,
-                  simulated_operators=simulated_operators)  # fmt: skip
+    plan = UpPlan(
+        vehicles=vehicles,
+        line=line,
+        port=port,
+        router_port=router_port,
+        data_dir=data_dir,
+        database=database,
+        speed=speed,
+        simulated_operators=simulated_operators,
+    )
     with stop_on_signals(stop):
         code = run_up(plan, stop, out=lambda text: print(text, flush=True))
     raise typer.Exit(code)
@@ -221,8 +233,11 @@ def campaign(
     json_path: Annotated[Path | None, typer.Option("--json", help="Write the summary.")] = None,
     generate: Annotated[
         int | None,
-        typer.Option(min=1, help="Generate this many scenarios from the space and judge the "
-                     "invariants (instead of named scenarios)."),
+        typer.Option(
+            min=1,
+            help="Generate this many scenarios from the space and judge the "
+            "invariants (instead of named scenarios).",
+        ),
     ] = None,
     seed: Annotated[int, typer.Option(min=0, help="--generate: the generator's seed.")] = 1,
     space: Annotated[
@@ -233,10 +248,12 @@ def campaign(
         typer.Option(help="--generate: where the files go (default .ato/generated/seed-S)."),
     ] = None,
     shrink_runs: Annotated[
-        int, typer.Option(min=0, help="--generate: runs allowed to shrink each invariant's "
-                          "first failure.")
+        int,
+        typer.Option(
+            min=0, help="--generate: runs allowed to shrink each invariant's first failure."
+        ),
     ] = 12,
-) -> None:  # fmt: skip
+) -> None:
     """Scenarios × seeds × variations in lockstep over worker processes; a summary table. Exit
     1 if a run crashed or ended unsafe (overspeed beyond the EBI, EoA passed, obstacle reached).
     With --generate N: N scenarios drawn from a space, judged by the invariants, each
@@ -246,26 +263,40 @@ def campaign(
     if generate is not None:
         if scenarios:
             raise typer.BadParameter("--generate draws its scenarios: name none")
-        raise typer.Exit(generated_campaign_from_cli(
-            generate, seed=seed, space_path=space, out_dir=out, workers=workers,
-            shrink_runs=shrink_runs, json_path=json_path,
-        ))  # fmt: skip
-    raise typer.Exit(campaign_from_cli(
-        scenarios or [], seeds=seeds, first_seed=first_seed, workers=workers, vary=vary or [],
-        json_path=json_path,
-    ))  # fmt: skip
+        raise typer.Exit(
+            generated_campaign_from_cli(
+                generate,
+                seed=seed,
+                space_path=space,
+                out_dir=out,
+                workers=workers,
+                shrink_runs=shrink_runs,
+                json_path=json_path,
+            )
+        )
+    raise typer.Exit(
+        campaign_from_cli(
+            scenarios or [],
+            seeds=seeds,
+            first_seed=first_seed,
+            workers=workers,
+            vary=vary or [],
+            json_path=json_path,
+        )
+    )
 
 
 @bench_app.command("run")
 def bench_run(
     scenarios: Annotated[
         list[str] | None,
-        typer.Argument(help="Scenario names or files (default: bologna-ring and "
-                       "milano-bologna-low-soc)."),
+        typer.Argument(
+            help="Scenario names or files (default: bologna-ring and milano-bologna-low-soc)."
+        ),
     ] = None,
     runs: Annotated[int, typer.Option(min=1, help="Runs per scenario.")] = 5,
     seed: Annotated[int | None, typer.Option(help="Override the scenarios' seed.")] = None,
-) -> None:  # fmt: skip
+) -> None:
     """Whole-stack real-time factor in lockstep: `ato run --fast` again and again, median and
     worst beside the target."""
     from deploy.bench.run_bench import DEFAULT_SCENARIOS
@@ -316,10 +347,13 @@ def bench_vc(
     runs: Annotated[int, typer.Option(help="Task B runs timed in lockstep (0: none).")] = 1_000_000,
     spin_us: Annotated[
         list[float] | None,
-        typer.Option("--spin-us", help="Poll the clock for the last µs before each release "
-                     "(repeatable; default 0 and 500: both, side by side)."),
+        typer.Option(
+            "--spin-us",
+            help="Poll the clock for the last µs before each release "
+            "(repeatable; default 0 and 500: both, side by side).",
+        ),
     ] = None,
-) -> None:  # fmt: skip
+) -> None:
     """VC tasks A/B/C: execution time over 10⁶ runs, lateness at 2 ms in real time, misses."""
     from deploy.bench.vc_bench import bench_vc as run
 

@@ -102,9 +102,13 @@ def _settings(
     except ValueError as exc:
         raise typer.BadParameter(str(exc)) from exc
     return DriveSettings(
-        line_id=line, duration_s=duration, cruise_kmh=cruise_kmh, seed=seed,
-        link_faults=link_faults, record=record,
-    )  # fmt: skip
+        line_id=line,
+        duration_s=duration,
+        cruise_kmh=cruise_kmh,
+        seed=seed,
+        link_faults=link_faults,
+        record=record,
+    )
 
 
 @sfa_app.command()
@@ -184,11 +188,12 @@ def replay(
         filter=FilterConfig(
             gps_sigma_m=defaults.gps_sigma_m if gps_sigma_m is None else gps_sigma_m,
             acceleration_noise_mps2=(
-                defaults.acceleration_noise_mps2 if acceleration_sigma is None
+                defaults.acceleration_noise_mps2
+                if acceleration_sigma is None
                 else acceleration_sigma
             ),
         ),
-    )  # fmt: skip
+    )
     try:
         result = run_replay(Recording.load(file), config)
     except (RecordingError, KeyError) as exc:

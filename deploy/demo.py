@@ -50,9 +50,11 @@ def _demo_driver(stop: threading.Event) -> None:
                 if not alive.wait(0.5):
                     continue
                 command = m.Command(
-                    vehicle_id=DEMO_VEHICLE, command_id=command_id, issued_by="demo-driver",
+                    vehicle_id=DEMO_VEHICLE,
+                    command_id=command_id,
+                    issued_by="demo-driver",
                     body=m.RemoteDrivingTargetCommand(target_speed_mps=DEMO_TARGET_SPEED_MPS),
-                )  # fmt: skip
+                )
                 command_id += 1
                 try:
                     ack = request(session, COMMAND, command, vehicle=DEMO_VEHICLE)
@@ -77,9 +79,12 @@ def run_demo(*, port: int, data_dir: Path) -> None:
     stop = threading.Event()
     ready = threading.Event()
     router = threading.Thread(
-        target=run_router, args=(stop,), kwargs={"listen": [DEMO_ROUTER], "ready": ready},
-        name="zenoh-router", daemon=True,
-    )  # fmt: skip
+        target=run_router,
+        args=(stop,),
+        kwargs={"listen": [DEMO_ROUTER], "ready": ready},
+        name="zenoh-router",
+        daemon=True,
+    )
     router.start()
     if not ready.wait(10.0):
         raise SystemExit(f"the Zenoh router did not start on {DEMO_ROUTER} (port taken?)")
@@ -93,8 +98,9 @@ def run_demo(*, port: int, data_dir: Path) -> None:
     )
     # The vehicle's VC: two boards in 2-out-of-2 (the default), recording its datalog.
     datalog = data_dir / "vc" / f"{DEMO_VEHICLE}.jsonl"
-    onboard_args = ato_command("onboard", "--vehicle", DEMO_VEHICLE, "--zenoh", DEMO_ROUTER,
-                               "--vc-datalog", str(datalog))  # fmt: skip
+    onboard_args = ato_command(
+        "onboard", "--vehicle", DEMO_VEHICLE, "--zenoh", DEMO_ROUTER, "--vc-datalog", str(datalog)
+    )
     with child_process(onboard_args, log_file=data_dir / f"onboard-{DEMO_VEHICLE}.log"):
         driver = threading.Thread(target=_demo_driver, args=(stop,), daemon=True)
         driver.start()

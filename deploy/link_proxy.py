@@ -103,8 +103,17 @@ class LinkProxy:
         if self._child is not None:
             return
         host, port = self._bind
-        command = [sys.executable, "-m", "deploy.link_proxy", self.target[0], str(self.target[1]),
-                   "--host", host, "--port", str(port)]  # fmt: skip
+        command = [
+            sys.executable,
+            "-m",
+            "deploy.link_proxy",
+            self.target[0],
+            str(self.target[1]),
+            "--host",
+            host,
+            "--port",
+            str(port),
+        ]
         self._child = subprocess.Popen(
             command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
         )
@@ -190,7 +199,8 @@ class LinkProxy:
 
     def _read(self, timeout_s: float) -> dict[str, Any]:
         child = self._child
-        assert child is not None and child.stdout is not None
+        assert child is not None
+        assert child.stdout is not None
         # One request, one answer line: nothing is ever left in the reader's buffer.
         ready, _, _ = select.select([child.stdout], [], [], timeout_s)
         line = child.stdout.readline() if ready else ""
@@ -303,9 +313,12 @@ class _Forwarder:
         ]
 
     async def _pump(
-        self, pipe: _Pipe, reader: asyncio.StreamReader, writer: asyncio.StreamWriter,
+        self,
+        pipe: _Pipe,
+        reader: asyncio.StreamReader,
+        writer: asyncio.StreamWriter,
         counter: str,
-    ) -> None:  # fmt: skip
+    ) -> None:
         """Copy one direction while the link is up; hold (read nothing, write nothing) while it
         is cut; end the pipe when either side closes."""
         try:

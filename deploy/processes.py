@@ -89,7 +89,7 @@ def run_onboard(
                 fidelity=fidelity,
                 vc_replicas=vc_replicas,
                 vc_datalog=vc_datalog,
-            ),  # fmt: skip
+            ),
             session=session,
             clock=RealTimeClock(speed_factor),
             track_map=track_map,

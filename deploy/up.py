@@ -86,9 +86,13 @@ class Part:
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         self._log = open(self.log_path, "ab")  # noqa: SIM115 - closed in stop()
         self.process = subprocess.Popen(
-            self.args, stdout=self._log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-            env=self.env, preexec_fn=_die_with_parent if sys.platform == "linux" else None,
-        )  # fmt: skip
+            self.args,
+            stdout=self._log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            env=self.env,
+            preexec_fn=_die_with_parent if sys.platform == "linux" else None,
+        )
 
     @property
     def pid(self) -> int | None:
@@ -144,22 +148,49 @@ class Fleet:
             env["ATO_SIMULATED_OPERATORS"] = ",".join(plan.vehicle_ids())
         database = plan.database or f"sqlite:///{(plan.data_dir / 'trackside.db').resolve()}"
         fleet = cls(plan, endpoint, f"http://{plan.host}:{port}", (user, password))
-        fleet.parts.append(Part("router", _ato("router", "--listen", endpoint),
-                                logs / "router.log"))  # fmt: skip
-        fleet.parts.append(Part(
-            "trackside",
-            _ato("trackside", "--host", plan.host, "--port", str(port), "--zenoh", endpoint,
-                 "--database", database),
-            logs / "trackside.log", env=env,
-        ))  # fmt: skip
+        fleet.parts.append(
+            Part("router", _ato("router", "--listen", endpoint), logs / "router.log")
+        )
+        fleet.parts.append(
+            Part(
+                "trackside",
+                _ato(
+                    "trackside",
+                    "--host",
+                    plan.host,
+                    "--port",
+                    str(port),
+                    "--zenoh",
+                    endpoint,
+                    "--database",
+                    database,
+                ),
+                logs / "trackside.log",
+                env=env,
+            )
+        )
         for vehicle in plan.vehicle_ids():
-            fleet.parts.append(Part(
-                f"onboard-{vehicle}",
-                _ato("onboard", "--vehicle", vehicle, "--zenoh", endpoint, "--line", plan.line,
-                     "--speed", str(plan.speed), "--fidelity", plan.fidelity,
-                     "--vc-datalog", str(plan.data_dir / "vc" / f"{vehicle}.jsonl")),
-                logs / f"onboard-{vehicle}.log",
-            ))  # fmt: skip
+            fleet.parts.append(
+                Part(
+                    f"onboard-{vehicle}",
+                    _ato(
+                        "onboard",
+                        "--vehicle",
+                        vehicle,
+                        "--zenoh",
+                        endpoint,
+                        "--line",
+                        plan.line,
+                        "--speed",
+                        str(plan.speed),
+                        "--fidelity",
+                        plan.fidelity,
+                        "--vc-datalog",
+                        str(plan.data_dir / "vc" / f"{vehicle}.jsonl"),
+                    ),
+                    logs / f"onboard-{vehicle}.log",
+                )
+            )
         return fleet
 
     def part(self, name: str) -> Part:
@@ -198,8 +229,10 @@ class Fleet:
                 raise UpError(f"interrupted while waiting for the {what}")
             dead = [p for p in self.parts if p.process is not None and not p.running]
             if dead:
-                raise UpError(f"{dead[0].name} exited with {dead[0].process.returncode}"  # type: ignore[union-attr]
-                              f" (see {dead[0].log_path})")  # fmt: skip
+                raise UpError(
+                    f"{dead[0].name} exited with {dead[0].process.returncode}"  # type: ignore[union-attr]
+                    f" (see {dead[0].log_path})"
+                )
             if time.monotonic() > deadline:
                 where = f" (see {part.log_path})" if part is not None else ""
                 raise UpError(f"{what} not healthy within {timeout_s:.0f} s{where}")
@@ -219,15 +252,21 @@ class Fleet:
 
     def token(self) -> str:
         user, password = self.admin
-        answer = httpx.post(f"{self.url}/api/v1/auth/token", timeout=5.0,
-                            data={"username": user, "password": password})  # fmt: skip
+        answer = httpx.post(
+            f"{self.url}/api/v1/auth/token",
+            timeout=5.0,
+            data={"username": user, "password": password},
+        )
         answer.raise_for_status()
         return str(answer.json()["access_token"])
 
     def alive(self) -> dict[str, bool]:
         """Each vehicle the trackside knows, and whether it is alive."""
-        answer = httpx.get(f"{self.url}/api/v1/vehicles", timeout=2.0,
-                           headers={"Authorization": f"Bearer {self.token()}"})  # fmt: skip
+        answer = httpx.get(
+            f"{self.url}/api/v1/vehicles",
+            timeout=2.0,
+            headers={"Authorization": f"Bearer {self.token()}"},
+        )
         answer.raise_for_status()
         return {item["id"]: bool(item["alive"]) for item in answer.json()}
 
@@ -250,9 +289,7 @@ class Fleet:
         return [(p.name, str(p.pid), str(p.log_path)) for p in self.parts]
 
 
-def run_up(
-    plan: UpPlan, stop: threading.Event, *, out: Callable[[str], None] = print
-) -> int:  # fmt: skip
+def run_up(plan: UpPlan, stop: threading.Event, *, out: Callable[[str], None] = print) -> int:
     """Bring the fleet up, report it, and run until ``stop``; the exit status."""
     plan.data_dir.mkdir(parents=True, exist_ok=True)
     fleet = Fleet.plan_parts(plan)
@@ -265,8 +302,10 @@ def run_up(
     except UpError as exc:
         out(f"ato up failed: {exc}")
         return 1
-    out(f"ato up: router {fleet.router_endpoint}, console {fleet.url}/ "
-        f"(login {fleet.admin[0]} / {fleet.admin[1]})")  # fmt: skip
+    out(
+        f"ato up: router {fleet.router_endpoint}, console {fleet.url}/ "
+        f"(login {fleet.admin[0]} / {fleet.admin[1]})"
+    )
     for name, pid, log in fleet.table():
         out(f"  {name:<16} pid {pid:<8} log {log}")
     reported: set[str] = set()

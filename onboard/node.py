@@ -172,26 +172,40 @@ class OnboardNode:
         self.plant = _simulated_vehicle(settings, track_map, start_s=clock.now_s)
         self.vcu = (
             VcuDrive(vcu_parameters_for(URV_BOGIE_PARAMETERS))
-            if settings.fidelity == "bogie" else None
-        )  # fmt: skip
-        vital = VcInstallation(
-            self._wheel_travel_m, config=settings.vc_config, replicas=settings.vc_replicas,
-            faults=settings.vc_faults, start_s=clock.now_s,
-        ) if settings.vital_control else None  # fmt: skip
+            if settings.fidelity == "bogie"
+            else None
+        )
+        vital = (
+            VcInstallation(
+                self._wheel_travel_m,
+                config=settings.vc_config,
+                replicas=settings.vc_replicas,
+                faults=settings.vc_faults,
+                start_s=clock.now_s,
+            )
+            if settings.vital_control
+            else None
+        )
         self.sensor_fusion = SensorFusionChain(
             track_map, settings.sensors, start_position_m=settings.start_position_m
         )
         self.stack = OnboardStack(
-            track_map, self.sensor_fusion, URV_PARAMETERS, self.plant.force_limits_n,
-            start_position_m=settings.start_position_m, start_s=clock.now_s,
-            energy_plans=settings.energy_plans, vital=vital,
-        )  # fmt: skip
+            track_map,
+            self.sensor_fusion,
+            URV_PARAMETERS,
+            self.plant.force_limits_n,
+            start_position_m=settings.start_position_m,
+            start_s=clock.now_s,
+            energy_plans=settings.energy_plans,
+            vital=vital,
+        )
         self._datalog: Datalog | None = None
         self.track_database = self.stack.track_database
         self.session_client = SessionClient(
-            vehicle_id=self.vehicle_id, etcs_id=settings.etcs_id,
+            vehicle_id=self.vehicle_id,
+            etcs_id=settings.etcs_id,
             train_length_m=settings.train_length_m,
-        )  # fmt: skip
+        )
         self._inbox: deque[m.Command] = deque()
         self._inbox_lock = threading.Lock()
         self._session_replies: deque[m.SessionAccept | m.SessionReject | None] = deque()
@@ -242,9 +256,11 @@ class OnboardNode:
             if name == "vital_link" and vital is None:
                 continue
             self.executive.add_task(
-                name, getattr(self, f"_task_{name}"), period_s=spec.period_s,
+                name,
+                getattr(self, f"_task_{name}"),
+                period_s=spec.period_s,
                 priority=spec.priority,
-            )  # fmt: skip
+            )
         if vital is not None:
             vital.register(self.executive)
             if settings.vc_datalog is not None:
@@ -306,9 +322,12 @@ class OnboardNode:
         request = m.LineVersionRequest(vehicle_id=self.vehicle_id, line_id=self.track_map.line.id)
         try:
             request_async(
-                self._session, LINE_VERSION, request, self._on_line_version,
+                self._session,
+                LINE_VERSION,
+                request,
+                self._on_line_version,
                 line=self.track_map.line.id,
-            )  # fmt: skip
+            )
         except ProtocolError as exc:
             self.emit(m.EventSeverity.WARNING, "track_data.query_failed", str(exc), now_ns=now_ns)
 
@@ -331,23 +350,30 @@ class OnboardNode:
         while (received := self._journeys.try_recv()) is not None:
             _, profile = received
             if not self.session_client.on_journey_profile(profile, now_s):
-                self.emit(m.EventSeverity.WARNING, "journey.stale",
-                          f"journey {profile.journey_id} v{profile.version} dropped",
-                          now_ns=now_ns)  # fmt: skip
+                self.emit(
+                    m.EventSeverity.WARNING,
+                    "journey.stale",
+                    f"journey {profile.journey_id} v{profile.version} dropped",
+                    now_ns=now_ns,
+                )
                 continue
             accepted, reason = self.stack.review_journey(profile)
             self._journey_acks.put(
                 m.JourneyProfileAck(
-                    vehicle_id=self.vehicle_id, journey_id=profile.journey_id,
-                    version=profile.version, accepted=accepted, reason=reason,
+                    vehicle_id=self.vehicle_id,
+                    journey_id=profile.journey_id,
+                    version=profile.version,
+                    accepted=accepted,
+                    reason=reason,
                 )
-            )  # fmt: skip
+            )
             verdict = "accepted" if accepted else f"refused: {reason}"
             self.emit(
                 m.EventSeverity.INFO if accepted else m.EventSeverity.WARNING,
                 "journey.accepted" if accepted else "journey.refused",
-                f"journey {profile.journey_id} v{profile.version} {verdict}", now_ns=now_ns,
-            )  # fmt: skip
+                f"journey {profile.journey_id} v{profile.version} {verdict}",
+                now_ns=now_ns,
+            )
 
     def _take_authorities(self, now_ns: int) -> None:
         while (received := self._authorities.try_recv()) is not None:
@@ -359,8 +385,7 @@ class OnboardNode:
             except EtcsError as exc:
                 self.emit(m.EventSeverity.WARNING, "etcs.ma_refused", str(exc), now_ns=now_ns)
                 continue
-            self.emit(m.EventSeverity.INFO, "etcs.ma", f"MA {message.ma_id} {what}",
-                      now_ns=now_ns)  # fmt: skip
+            self.emit(m.EventSeverity.INFO, "etcs.ma", f"MA {message.ma_id} {what}", now_ns=now_ns)
 
     def _take_speed_restrictions(self, now_ns: int) -> None:
         while (received := self._restrictions.try_recv()) is not None:
@@ -398,48 +423,68 @@ class OnboardNode:
             if refused is None:
                 self.stack.remote(body.target_speed_mps, now_s)
                 self.emit(
-                    m.EventSeverity.INFO, "rd.target_speed",
+                    m.EventSeverity.INFO,
+                    "rd.target_speed",
                     f"target {body.target_speed_mps / MPS_PER_KMH:.1f} km/h by {command.issued_by}",
                     now_ns=now_ns,
-                )  # fmt: skip
+                )
         elif isinstance(body, m.EngageCommand):
             refused = self.stack.engage(now_s)
             if refused is None:
-                self.emit(m.EventSeverity.INFO, "ato.engaged", f"by {command.issued_by}",
-                          now_ns=now_ns)  # fmt: skip
+                self.emit(
+                    m.EventSeverity.INFO, "ato.engaged", f"by {command.issued_by}", now_ns=now_ns
+                )
         elif isinstance(body, m.DisengageCommand):
             refused = self.stack.disengage(now_s)
             if refused is None:
-                self.emit(m.EventSeverity.INFO, "ato.disengaged", f"by {command.issued_by}",
-                          now_ns=now_ns)  # fmt: skip
+                self.emit(
+                    m.EventSeverity.INFO, "ato.disengaged", f"by {command.issued_by}", now_ns=now_ns
+                )
         elif isinstance(body, m.SkipStopCommand):
             refused = self.stack.refusal(body)
             if refused is None:
                 self.stack.skip_stop(body.timing_point_id, now_s)
-                self.emit(m.EventSeverity.INFO, "journey.skip_stop",
-                          f"{body.timing_point_id} skipped by {command.issued_by}",
-                          now_ns=now_ns)  # fmt: skip
+                self.emit(
+                    m.EventSeverity.INFO,
+                    "journey.skip_stop",
+                    f"{body.timing_point_id} skipped by {command.issued_by}",
+                    now_ns=now_ns,
+                )
         elif isinstance(body, m.TrainHoldCommand):
             refused = self.stack.refusal(body)
             if refused is None:
                 self.stack.train_hold(body.hold, now_s)
-                self.emit(m.EventSeverity.INFO, "journey.train_hold",
-                          f"{'held' if body.hold else 'released'} by {command.issued_by}",
-                          now_ns=now_ns)  # fmt: skip
+                self.emit(
+                    m.EventSeverity.INFO,
+                    "journey.train_hold",
+                    f"{'held' if body.hold else 'released'} by {command.issued_by}",
+                    now_ns=now_ns,
+                )
         elif isinstance(body, m.EmergencyBrakeCommand):
             refused = self.stack.operator_emergency_brake()
             if refused is None:
-                self.emit(m.EventSeverity.WARNING, "operator.emergency_brake",
-                          f"by {command.issued_by}", now_ns=now_ns)  # fmt: skip
+                self.emit(
+                    m.EventSeverity.WARNING,
+                    "operator.emergency_brake",
+                    f"by {command.issued_by}",
+                    now_ns=now_ns,
+                )
         elif isinstance(body, m.OperatorConfirmCommand):
             refused = self.stack.operator_confirm(body.request, body.number)
             if refused is None:
-                self.emit(m.EventSeverity.INFO, f"operator.confirm.{body.request.value}",
-                          f"request {body.number} by {command.issued_by}",
-                          now_ns=now_ns)  # fmt: skip
+                self.emit(
+                    m.EventSeverity.INFO,
+                    f"operator.confirm.{body.request.value}",
+                    f"request {body.number} by {command.issued_by}",
+                    now_ns=now_ns,
+                )
         if refused is not None:
-            self.emit(m.EventSeverity.WARNING, "command.refused",
-                      f"command {command.command_id}: {refused}", now_ns=now_ns)  # fmt: skip
+            self.emit(
+                m.EventSeverity.WARNING,
+                "command.refused",
+                f"command {command.command_id}: {refused}",
+                now_ns=now_ns,
+            )
 
     def _wheel_travel_m(self) -> tuple[float, float]:
         """The (front, rear) axles' travel [m] as the axle-end sensors last read it."""
@@ -453,9 +498,15 @@ class OnboardNode:
         plant, demand = self.plant, self.stack.force_demand_n
         if self.vcu is not None:
             wheels, powertrain = plant.wheels, plant.powertrain_reading()
-            assert wheels is not None and powertrain is not None
-            commands = self.vcu.step(dt_s, demand, fused_speed_mps=self.sensor_fusion.speed_mps,
-                                     wheels=wheels, powertrain=powertrain)  # fmt: skip
+            assert wheels is not None
+            assert powertrain is not None
+            commands = self.vcu.step(
+                dt_s,
+                demand,
+                fused_speed_mps=self.sensor_fusion.speed_mps,
+                wheels=wheels,
+                powertrain=powertrain,
+            )
             plant.step(now_s, dt_s, commands, emergency_brake=self.stack.emergency_brake(now_s))
             return
         plant.step(now_s, dt_s, demand, emergency_brake=self.stack.emergency_brake(now_s))
@@ -471,8 +522,9 @@ class OnboardNode:
 
     def _task_etcs(self, now_ns: int) -> None:
         plant = self.plant
-        self.stack.step_etcs(now_ns / NS_PER_S, plant.take_wheel_readings(),
-                             plant.take_balise_detections())  # fmt: skip
+        self.stack.step_etcs(
+            now_ns / NS_PER_S, plant.take_wheel_readings(), plant.take_balise_detections()
+        )
 
     def _task_control(self, now_ns: int) -> None:
         self.stack.session_alive = self.session_client.established
@@ -486,8 +538,9 @@ class OnboardNode:
             client.on_status_ack(ack[1].vehicle_id, ack[1].seq, now_s)
         while (received := self._terminations.try_recv()) is not None:
             if client.on_termination(received[1], now_s):
-                self.emit(m.EventSeverity.WARNING, "session.terminated", received[1].reason,
-                          now_ns=now_ns)  # fmt: skip
+                self.emit(
+                    m.EventSeverity.WARNING, "session.terminated", received[1].reason, now_ns=now_ns
+                )
         with self._inbox_lock:
             replies = list(self._session_replies)
             self._session_replies.clear()
@@ -503,8 +556,9 @@ class OnboardNode:
             self._take_session_reply(self._lockstep_handshake(handshake), now_ns)
             return
         try:
-            request_async(self._session, SESSION, handshake, self._on_session_reply,
-                          vehicle=self.vehicle_id)  # fmt: skip
+            request_async(
+                self._session, SESSION, handshake, self._on_session_reply, vehicle=self.vehicle_id
+            )
         except ProtocolError:
             self._take_session_reply(None, now_ns)
 
@@ -542,11 +596,16 @@ class OnboardNode:
         client.on_response(reply, now_ns / NS_PER_S)
         if client.established:
             self._barrier_armed = True
-            self.emit(m.EventSeverity.INFO, "session.established",
-                      f"with {client.trackside_id}", now_ns=now_ns)  # fmt: skip
+            self.emit(
+                m.EventSeverity.INFO,
+                "session.established",
+                f"with {client.trackside_id}",
+                now_ns=now_ns,
+            )
         elif isinstance(reply, m.SessionReject):
-            self.emit(m.EventSeverity.WARNING, "session.rejected", reply.reason.value,
-                      now_ns=now_ns)  # fmt: skip
+            self.emit(
+                m.EventSeverity.WARNING, "session.rejected", reply.reason.value, now_ns=now_ns
+            )
 
     def _task_status(self, now_ns: int) -> None:
         client = self.session_client
@@ -584,8 +643,11 @@ class OnboardNode:
     def inputs_received(self) -> tuple[int, int, int]:
         """Journey profiles, movement authorities and TSRs received so far (lockstep drivers wait on
         these so that a message sent between two slices is taken at the next one)."""
-        return (self._journeys.stats.received, self._authorities.stats.received,
-                self._restrictions.stats.received)  # fmt: skip
+        return (
+            self._journeys.stats.received,
+            self._authorities.stats.received,
+            self._restrictions.stats.received,
+        )
 
     @property
     def status_ack_outstanding(self) -> bool:
@@ -639,7 +701,7 @@ class OnboardNode:
                     estimated_s=estimate,
                 )
                 for stop, estimate in driving.arrival_estimates(now_s, position_m)
-            ),  # fmt: skip
+            ),
             vital_control=self.stack.vital_status(),
             permitted_speed_mps=max(etcs.permitted_speed_mps, 0.0),
             intervention_speed_mps=intervention if math.isfinite(intervention) else None,
@@ -653,10 +715,14 @@ class OnboardNode:
         at_ns = self.clock.now_ns if now_ns is None else now_ns
         self._events.put(
             m.Event(
-                vehicle_id=self.vehicle_id, seq=self._event_seq, sim_time_s=at_ns / NS_PER_S,
-                severity=severity, code=code, text=text,
+                vehicle_id=self.vehicle_id,
+                seq=self._event_seq,
+                sim_time_s=at_ns / NS_PER_S,
+                severity=severity,
+                code=code,
+                text=text,
             )
-        )  # fmt: skip
+        )
         self._event_seq += 1
 
     # -- life cycle ----------------------------------------------------------------------------
@@ -679,11 +745,17 @@ class OnboardNode:
             self._termination_out.put(termination)
         self._commands.close()
         for closable in (
-            self._journeys, self._journey_acks, self._status_acks,
-            self._terminations, self._termination_out, self._authorities, self._restrictions,
+            self._journeys,
+            self._journey_acks,
+            self._status_acks,
+            self._terminations,
+            self._termination_out,
+            self._authorities,
+            self._restrictions,
             self._status,
-            self._events, self._tracksides,
-        ):  # fmt: skip
+            self._events,
+            self._tracksides,
+        ):
             closable.close()
         if self._datalog is not None:
             self._datalog.close()
@@ -707,15 +779,20 @@ def _simulated_vehicle(
         else PointMassModel(URV_PARAMETERS, position_m=position_m)
     )
     return SimulatedVehicle(
-        track_map, dynamics,
+        track_map,
+        dynamics,
         interface_modules=InterfaceModules(
-            track_map, rng=np.random.default_rng(sensors.seed), noise=sensors.noise,
-            faults=sensors.faults, diameter_error=diameter_error,
+            track_map,
+            rng=np.random.default_rng(sensors.seed),
+            noise=sensors.noise,
+            faults=sensors.faults,
+            diameter_error=diameter_error,
         ),
         wheel_sensors=WheelSensors(rng=wheel_rng, diameter_error=diameter_error),
         balise_reader=BaliseReader(
-            track_map, rng=np.random.default_rng([sensors.seed, 3]),
+            track_map,
+            rng=np.random.default_rng([sensors.seed, 3]),
             faults=BaliseReaderFaults(missed_group_ids=sensors.missed_balise_groups),
         ),
         start_s=start_s,
-    )  # fmt: skip
+    )

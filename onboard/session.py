@@ -84,10 +84,12 @@ class SessionClient:
         if self.state in (ClientState.NCE, ClientState.CST) and now_s >= self._next_request_s:
             self.state, self._requested_s = ClientState.CSR, now_s
             return m.SessionRequest(
-                vehicle_id=self.vehicle_id, supported_versions=SUPPORTED_VERSIONS,
-                etcs_id=self.etcs_id, train_length_m=self.train_length_m,
+                vehicle_id=self.vehicle_id,
+                supported_versions=SUPPORTED_VERSIONS,
+                etcs_id=self.etcs_id,
+                train_length_m=self.train_length_m,
                 track_data_version=track_data_version,
-            )  # fmt: skip
+            )
         return None
 
     def on_response(self, response: m.SessionAccept | m.SessionReject | None, now_s: float) -> None:

@@ -67,15 +67,18 @@ class StackEvent:
 def authority_from_extent(extent: m.MovementAuthorityExtent) -> MovementAuthority:
     """The ETCS onboard's MA from the RBC's wire extent: distances from its start (packet 15)."""
     return MovementAuthority(
-        reference_m=extent.start_m, end_of_authority_m=extent.length_m,
-        danger_point_m=extent.danger_point_m, overlap_m=extent.overlap_m,
-        overlap_timer_s=extent.overlap_timer_s, overlap_timer_start_m=extent.overlap_timer_start_m,
+        reference_m=extent.start_m,
+        end_of_authority_m=extent.length_m,
+        danger_point_m=extent.danger_point_m,
+        overlap_m=extent.overlap_m,
+        overlap_timer_s=extent.overlap_timer_s,
+        overlap_timer_start_m=extent.overlap_timer_start_m,
         release_speed_mps=extent.release_speed_mps,
         sections=tuple(
             MaSection(length_m=s.length_m, timer_s=s.timer_s, timer_stop_m=s.timer_stop_m)
             for s in extent.sections
         ),
-    )  # fmt: skip
+    )
 
 
 class Locator(Protocol):
@@ -126,8 +129,12 @@ class OnboardStack:
 
     def __post_init__(self) -> None:
         self.track_database = TrackDatabaseManager(self.track_map)
-        self.etcs = EtcsOnboard(self.track_map, position_m=self.start_position_m,
-                                start_s=self.start_s, odometer=URV_ODOMETER)  # fmt: skip
+        self.etcs = EtcsOnboard(
+            self.track_map,
+            position_m=self.start_position_m,
+            start_s=self.start_s,
+            odometer=URV_ODOMETER,
+        )
         self.etcs.start_of_mission(self.start_s)
         self.controller = AtoObController(start_s=self.start_s)
         self.driving = DrivingFunction(self.track_map, self.model)
@@ -139,11 +146,19 @@ class OnboardStack:
         self.force_demand_n = 0.0
         self._ad_requested = False
         self._overrun_noted: str | None = None
-        self.vital_links = [
-            VitalLink(request, response, vigilance_timeout_s=self.vital.config.vigilance_timeout_s,
-                      sequence_modulo=self.vital.config.sequence_modulo)
-            for request, response in self.vital.links
-        ] if self.vital is not None else []  # fmt: skip
+        self.vital_links = (
+            [
+                VitalLink(
+                    request,
+                    response,
+                    vigilance_timeout_s=self.vital.config.vigilance_timeout_s,
+                    sequence_modulo=self.vital.config.sequence_modulo,
+                )
+                for request, response in self.vital.links
+            ]
+            if self.vital is not None
+            else []
+        )
         self._balise_reading = self.etcs.last_balise_reading
         self._vc_events_seen = (0, 0)
         self._pair_events_seen = 0
@@ -184,8 +199,13 @@ class OnboardStack:
             return False, review.reason
         chainage = self.track_map.normalise(self.position_m)
         try:
-            plan = plan_journey(self.track_map, self.model, profile, start_chainage_m=chainage,
-                                energy=self.energy_plans)  # fmt: skip
+            plan = plan_journey(
+                self.track_map,
+                self.model,
+                profile,
+                start_chainage_m=chainage,
+                energy=self.energy_plans,
+            )
         except InfeasibleLegError as exc:
             self.track_database.journey = None
             return False, f"infeasible: {exc}"
@@ -200,9 +220,10 @@ class OnboardStack:
             self.etcs.emergency_stop(now_s)
             return "revoked: emergency stop"
         change = self.etcs.receive_movement_authority(
-            authority_from_extent(message.authority), now_s,
+            authority_from_extent(message.authority),
+            now_s,
             track_description_m=message.authority.track_description_m,
-        )  # fmt: skip
+        )
         return change.value
 
     def receive_speed_restriction(self, message: m.SpeedRestrictionMessage, now_s: float) -> str:
@@ -216,21 +237,29 @@ class OnboardStack:
         """
         track_map = self.track_map
         if message.line_id != track_map.line.id:
-            raise ValueError(f"TSR on line {message.line_id!r}, the vehicle is on "
-                             f"{track_map.line.id!r}")  # fmt: skip
+            raise ValueError(
+                f"TSR on line {message.line_id!r}, the vehicle is on {track_map.line.id!r}"
+            )
         if message.speed_mps is None:
             if not track_map.revoke_temporary_speed_restriction(message.restriction_id):
                 return f"TSR {message.restriction_id} not in force: nothing to revoke"
             what = f"TSR {message.restriction_id} revoked"
         else:
-            track_map.add_temporary_speed_restriction(TemporarySpeedRestriction(
-                id=message.restriction_id, start_m=message.start_m, end_m=message.end_m,
-                speed_mps=message.speed_mps,
-            ))  # fmt: skip
-            what = (f"TSR {message.restriction_id} {message.speed_mps / MPS_PER_KMH:.0f} km/h over "
-                    f"{message.start_m:.0f}..{message.end_m:.0f} m")  # fmt: skip
-        self.driving.speed_limits_changed(now_s, position_m=self.position_m,
-                                          speed_mps=self.speed_mps)  # fmt: skip
+            track_map.add_temporary_speed_restriction(
+                TemporarySpeedRestriction(
+                    id=message.restriction_id,
+                    start_m=message.start_m,
+                    end_m=message.end_m,
+                    speed_mps=message.speed_mps,
+                )
+            )
+            what = (
+                f"TSR {message.restriction_id} {message.speed_mps / MPS_PER_KMH:.0f} km/h over "
+                f"{message.start_m:.0f}..{message.end_m:.0f} m"
+            )
+        self.driving.speed_limits_changed(
+            now_s, position_m=self.position_m, speed_mps=self.speed_mps
+        )
         return what
 
     # -- operator requests -----------------------------------------------------------------------
@@ -284,21 +313,23 @@ class OnboardStack:
 
     def skip_stop(self, timing_point_id: str, now_s: float) -> None:
         """The driver's "Skip Stopping Point" (checked by :meth:`refusal`)."""
-        self.driving.skip_stop(timing_point_id, now_s, position_m=self.position_m,
-                               speed_mps=self.speed_mps)  # fmt: skip
+        self.driving.skip_stop(
+            timing_point_id, now_s, position_m=self.position_m, speed_mps=self.speed_mps
+        )
 
     def train_hold(self, hold: bool, now_s: float) -> None:
         """Train hold on or off (checked by :meth:`refusal`)."""
-        self.driving.set_hold(hold, now_s, position_m=self.position_m,
-                              speed_mps=self.speed_mps)  # fmt: skip
+        self.driving.set_hold(hold, now_s, position_m=self.position_m, speed_mps=self.speed_mps)
 
     def remote(self, target_mps: float, now_s: float) -> None:
         self.remote_selected = True
         self.remote_target_mps = target_mps
         self.driving.remote(
-            target_mps, now_s, speed_mps=self.speed_mps,
+            target_mps,
+            now_s,
+            speed_mps=self.speed_mps,
             gradient_permille=self.track_map.gradient_permille(self.position_m),
-        )  # fmt: skip
+        )
 
     def engage(self, now_s: float) -> str | None:
         """The remote driver's "ATO Engage"; the refusal, if refused."""
@@ -326,10 +357,12 @@ class OnboardStack:
             return
         if abs(self.position_m - self._planned_at_m) > REPLAN_MOVED_M:
             self.journey_plan = plan_journey(
-                self.track_map, self.model, self.track_database.journey,
+                self.track_map,
+                self.model,
+                self.track_database.journey,
                 start_chainage_m=self.track_map.normalise(self.position_m),
                 energy=self.energy_plans,
-            )  # fmt: skip
+            )
         self.driving.start_journey(self.journey_plan, now_s, position_m=self.position_m)
         self._journey_started = True
 
@@ -370,18 +403,25 @@ class OnboardStack:
             self._note(severity, f"vc.request.{request.kind.value}", text)
         vc = self.vital.boards[0].vc
         seen_b, seen_c = self._vc_events_seen
-        events = sorted(vc.task_b.events[seen_b:] + vc.task_c.events[seen_c:],
-                        key=lambda e: e.time_s)  # fmt: skip
+        events = sorted(
+            vc.task_b.events[seen_b:] + vc.task_c.events[seen_c:], key=lambda e: e.time_s
+        )
         self._vc_events_seen = (len(vc.task_b.events), len(vc.task_c.events))
         for event in events:
             serious = event.kind in _VC_ALARMS
-            self._note(m.EventSeverity.ERROR if serious else m.EventSeverity.INFO,
-                       f"vc.{event.kind.value}", f"{event.task}: {event.detail}")  # fmt: skip
+            self._note(
+                m.EventSeverity.ERROR if serious else m.EventSeverity.INFO,
+                f"vc.{event.kind.value}",
+                f"{event.task}: {event.detail}",
+            )
         pair = self.vital.pair
         if pair is not None:
             for pair_event in pair.events[self._pair_events_seen :]:
-                self._note(m.EventSeverity.ERROR, f"vc.pair.{pair_event.kind.value}",
-                           f"replica {pair_event.replica}: {pair_event.detail}")  # fmt: skip
+                self._note(
+                    m.EventSeverity.ERROR,
+                    f"vc.pair.{pair_event.kind.value}",
+                    f"replica {pair_event.replica}: {pair_event.detail}",
+                )
             self._pair_events_seen = len(pair.events)
 
     def _follow_relay(self, now_s: float) -> None:
@@ -400,20 +440,30 @@ class OnboardStack:
             return None
         out = self.vital.outputs
         return m.VitalControlStatus(
-            eb_commanded=self.vital.eb_commanded, system_decay=out.system_decay,
+            eb_commanded=self.vital.eb_commanded,
+            system_decay=out.system_decay,
             decay_reasons=tuple(reason.value for reason in out.decay_reasons),
             eb_conditions=tuple(int(condition) for condition in out.eb_conditions),
-            etcs_isolated=out.etcs_isolated, supervision_state=out.task_b_state.value,
-            brake_state=out.brake_state.value, etcs_state=out.etcs_state.value,
-            standstill=out.standstill, odometry_efficient=out.odometry_efficient,
+            etcs_isolated=out.etcs_isolated,
+            supervision_state=out.task_b_state.value,
+            brake_state=out.brake_state.value,
+            etcs_state=out.etcs_state.value,
+            standstill=out.standstill,
+            odometry_efficient=out.odometry_efficient,
             speed_mps=None if out.speed_mps is None else max(out.speed_mps, 0.0),
-            replicas=len(self.vital.boards), pair_tripped=self.vital.tripped,
+            replicas=len(self.vital.boards),
+            pair_tripped=self.vital.tripped,
             operator_requests=tuple(
-                m.OperatorRequest(kind=p.kind, number=p.number, raised_s=p.raised_s,
-                                  deadline_s=p.deadline_s, confirmed=p.confirmed)
+                m.OperatorRequest(
+                    kind=p.kind,
+                    number=p.number,
+                    raised_s=p.raised_s,
+                    deadline_s=p.deadline_s,
+                    confirmed=p.confirmed,
+                )
                 for p in self.vital_links[0].pending
             ),
-        )  # fmt: skip
+        )
 
     # -- tasks -----------------------------------------------------------------------------------
 
@@ -431,10 +481,13 @@ class OnboardStack:
         output = self.etcs.step_on_sensors(now_s, wheels, balises)
         for event in output.linking_events:
             what = "reaction applied" if event.applied else "reported only"
-            self._note(m.EventSeverity.WARNING, f"etcs.linking.{event.fault.value}",
-                       f"balise group {event.balise_group_id} expected at "
-                       f"{event.expected_location_m:.1f} m ± {event.location_accuracy_m:.1f} m: "
-                       f"{event.reaction.value}, {what}")  # fmt: skip
+            self._note(
+                m.EventSeverity.WARNING,
+                f"etcs.linking.{event.fault.value}",
+                f"balise group {event.balise_group_id} expected at "
+                f"{event.expected_location_m:.1f} m ± {event.location_accuracy_m:.1f} m: "
+                f"{event.reaction.value}, {what}",
+            )
         for detection in balises:
             self.locator.fix(detection.group.position_m, detection.time_s)
         reading = self.etcs.last_balise_reading
@@ -451,9 +504,12 @@ class OnboardStack:
             overrun_m = driving.overrun_m(stopped_at, position)
             if overrun_m > 0.0:
                 self._overrun_noted = stopped_at.timing_point_id
-                self._note(m.EventSeverity.WARNING, "journey.stop_overrun",
-                           f"stopped {overrun_m:.1f} m past {stopped_at.timing_point_id}'s "
-                           "tolerance: the brakes gave less than asked")  # fmt: skip
+                self._note(
+                    m.EventSeverity.WARNING,
+                    "journey.stop_overrun",
+                    f"stopped {overrun_m:.1f} m past {stopped_at.timing_point_id}'s "
+                    "tolerance: the brakes gave less than asked",
+                )
         next_stop = driving.next_stop(position) if self._journey_started else None
         if not self._journey_started and self.journey_plan is not None:
             next_stop = self.journey_plan.stops[0]
@@ -477,7 +533,7 @@ class OnboardStack:
             remote_driving_selected=self.remote_selected,
             other_emergency_brake=self.vital is not None and self.vital.eb_commanded,
             internal_fault=self.internal_fault,
-        )  # fmt: skip
+        )
 
     def step_control(self, now_s: float, applied_force_n: float = 0.0) -> float:
         """The ATO-OB controller and the ADF: the force demand [N] until the next step.
@@ -500,20 +556,31 @@ class OnboardStack:
         elif mode is ModeRequest.REMOTE and driving.state is m.ScState.OFF:
             self.remote(self.remote_target_mps or 0.0, now_s)
         if out.stop_at_next_stopping_point and not driving.fallback_active and self.engaged:
-            driving.stop_at_next_stopping_point(now_s, position_m=self.position_m,
-                                                speed_mps=self.speed_mps)  # fmt: skip
-            self._note(m.EventSeverity.WARNING, "ato.fallback_stop",
-                       "trackside lost: stopping at the next stopping point")  # fmt: skip
+            driving.stop_at_next_stopping_point(
+                now_s, position_m=self.position_m, speed_mps=self.speed_mps
+            )
+            self._note(
+                m.EventSeverity.WARNING,
+                "ato.fallback_stop",
+                "trackside lost: stopping at the next stopping point",
+            )
         elif driving.fallback_active and self.engaged and not out.stop_at_next_stopping_point:
             driving.resume_journey(now_s, position_m=self.position_m, speed_mps=self.speed_mps)
-            self._note(m.EventSeverity.INFO, "ato.fallback_cancelled",
-                       "trackside back: the journey goes on")  # fmt: skip
+            self._note(
+                m.EventSeverity.INFO,
+                "ato.fallback_cancelled",
+                "trackside back: the journey goes on",
+            )
         etcs = self.etcs.output
-        ahead = [d for d in (out.end_of_authority_distance_m, out.supervised_location_distance_m)
-                 if d is not None]  # fmt: skip
+        ahead = [
+            d
+            for d in (out.end_of_authority_distance_m, out.supervised_location_distance_m)
+            if d is not None
+        ]
         permitted = out.permitted_speed_mps if etcs is not None else math.inf
-        driving.set_etcs_limits(permitted, min(ahead) if ahead else None,
-                                position_m=self.position_m)  # fmt: skip
+        driving.set_etcs_limits(
+            permitted, min(ahead) if ahead else None, position_m=self.position_m
+        )
         etcs_brake = etcs is not None and (etcs.service_brake or etcs.emergency_brake)
         vc_braking = self.vital is not None and self.vital.eb_commanded
         if vc_braking != self._vc_braking and self.remote_selected:
@@ -521,15 +588,16 @@ class OnboardStack:
             # he asks is driven from where the train stands once the EB is released.
             if vc_braking:
                 self.remote_target_mps = 0.0
-            driving.restart_remote(self.remote_target_mps or 0.0, now_s,
-                                   speed_mps=self.speed_mps)  # fmt: skip
+            driving.restart_remote(self.remote_target_mps or 0.0, now_s, speed_mps=self.speed_mps)
         self._vc_braking = vc_braking
         self.force_demand_n = driving.step(
-            now_s, position_m=self.position_m, speed_mps=self.speed_mps,
+            now_s,
+            position_m=self.position_m,
+            speed_mps=self.speed_mps,
             applied_force_n=applied_force_n,
             gradient_permille=self.track_map.gradient_permille(self.position_m),
             force_limits_n=self.force_limits_n(self.speed_mps),
             traction_allowed=traction and not (etcs is not None and etcs.traction_cut),
             service_brake=out.full_service_brake or etcs_brake or vc_braking,
-        )  # fmt: skip
+        )
         return self.force_demand_n

@@ -168,57 +168,101 @@ class Topic(Generic[T]):
 
 
 STATUS: Topic[m.StatusReport] = Topic(
-    "status", "ato/ob/{vehicle}/status", m.StatusReport,
-    Direction.ONBOARD_TO_TRACKSIDE, Delivery.LATEST, rate_hz=5.0,
-)  # fmt: skip
+    "status",
+    "ato/ob/{vehicle}/status",
+    m.StatusReport,
+    Direction.ONBOARD_TO_TRACKSIDE,
+    Delivery.LATEST,
+    rate_hz=5.0,
+)
 EVENT: Topic[m.Event] = Topic(
-    "event", "ato/ob/{vehicle}/event", m.Event,
-    Direction.ONBOARD_TO_TRACKSIDE, Delivery.FIFO,
-)  # fmt: skip
+    "event",
+    "ato/ob/{vehicle}/event",
+    m.Event,
+    Direction.ONBOARD_TO_TRACKSIDE,
+    Delivery.FIFO,
+)
 COMMAND: Topic[m.Command] = Topic(
-    "command", "ato/ob/{vehicle}/command", m.Command,
-    Direction.TRACKSIDE_TO_ONBOARD, Delivery.QUERY, reply_type=m.CommandAck,
-)  # fmt: skip
+    "command",
+    "ato/ob/{vehicle}/command",
+    m.Command,
+    Direction.TRACKSIDE_TO_ONBOARD,
+    Delivery.QUERY,
+    reply_type=m.CommandAck,
+)
 JOURNEY_PROFILE: Topic[m.JourneyProfile] = Topic(
-    "journey_profile", "ato/ts/{vehicle}/journey_profile", m.JourneyProfile,
-    Direction.TRACKSIDE_TO_ONBOARD, Delivery.FIFO,
-)  # fmt: skip
+    "journey_profile",
+    "ato/ts/{vehicle}/journey_profile",
+    m.JourneyProfile,
+    Direction.TRACKSIDE_TO_ONBOARD,
+    Delivery.FIFO,
+)
 JOURNEY_PROFILE_ACK: Topic[m.JourneyProfileAck] = Topic(
-    "journey_profile_ack", "ato/ob/{vehicle}/journey_profile_ack", m.JourneyProfileAck,
-    Direction.ONBOARD_TO_TRACKSIDE, Delivery.FIFO,
-)  # fmt: skip
+    "journey_profile_ack",
+    "ato/ob/{vehicle}/journey_profile_ack",
+    m.JourneyProfileAck,
+    Direction.ONBOARD_TO_TRACKSIDE,
+    Delivery.FIFO,
+)
 LINE_VERSION: Topic[m.LineVersionRequest] = Topic(
-    "line_version", "ato/ts/line/{line}/version", m.LineVersionRequest,
-    Direction.ONBOARD_TO_TRACKSIDE, Delivery.QUERY, reply_type=m.LineVersionReply,
-)  # fmt: skip
+    "line_version",
+    "ato/ts/line/{line}/version",
+    m.LineVersionRequest,
+    Direction.ONBOARD_TO_TRACKSIDE,
+    Delivery.QUERY,
+    reply_type=m.LineVersionReply,
+)
 SESSION: Topic[m.SessionRequest] = Topic(
-    "session", "ato/ts/session/{vehicle}", m.SessionRequest,
-    Direction.ONBOARD_TO_TRACKSIDE, Delivery.QUERY, reply_type=m.SessionResponse,
-)  # fmt: skip
+    "session",
+    "ato/ts/session/{vehicle}",
+    m.SessionRequest,
+    Direction.ONBOARD_TO_TRACKSIDE,
+    Delivery.QUERY,
+    reply_type=m.SessionResponse,
+)
 STATUS_ACK: Topic[m.StatusAck] = Topic(
-    "status_ack", "ato/ts/{vehicle}/status_ack", m.StatusAck,
-    Direction.TRACKSIDE_TO_ONBOARD, Delivery.FIFO,
-)  # fmt: skip
+    "status_ack",
+    "ato/ts/{vehicle}/status_ack",
+    m.StatusAck,
+    Direction.TRACKSIDE_TO_ONBOARD,
+    Delivery.FIFO,
+)
 SESSION_TERMINATION: Topic[m.SessionTermination] = Topic(
-    "session_termination", "ato/session/{vehicle}/termination", m.SessionTermination,
-    Direction.ANY, Delivery.FIFO,
-)  # fmt: skip
+    "session_termination",
+    "ato/session/{vehicle}/termination",
+    m.SessionTermination,
+    Direction.ANY,
+    Delivery.FIFO,
+)
 MOVEMENT_AUTHORITY: Topic[m.MovementAuthorityMessage] = Topic(
-    "movement_authority", "ato/ts/rbc/{vehicle}/ma", m.MovementAuthorityMessage,
-    Direction.TRACKSIDE_TO_ONBOARD, Delivery.FIFO,
-)  # fmt: skip
+    "movement_authority",
+    "ato/ts/rbc/{vehicle}/ma",
+    m.MovementAuthorityMessage,
+    Direction.TRACKSIDE_TO_ONBOARD,
+    Delivery.FIFO,
+)
 SPEED_RESTRICTION: Topic[m.SpeedRestrictionMessage] = Topic(
-    "speed_restriction", "ato/ts/rbc/{vehicle}/tsr", m.SpeedRestrictionMessage,
-    Direction.TRACKSIDE_TO_ONBOARD, Delivery.FIFO,
-)  # fmt: skip
+    "speed_restriction",
+    "ato/ts/rbc/{vehicle}/tsr",
+    m.SpeedRestrictionMessage,
+    Direction.TRACKSIDE_TO_ONBOARD,
+    Delivery.FIFO,
+)
 MOVEMENT_AUTHORITY_CURRENT: Topic[m.MovementAuthorityRequest] = Topic(
-    "movement_authority_current", "ato/ts/rbc/{vehicle}/current_ma", m.MovementAuthorityRequest,
-    Direction.ONBOARD_TO_TRACKSIDE, Delivery.QUERY, reply_type=m.MovementAuthorityReply,
-)  # fmt: skip
+    "movement_authority_current",
+    "ato/ts/rbc/{vehicle}/current_ma",
+    m.MovementAuthorityRequest,
+    Direction.ONBOARD_TO_TRACKSIDE,
+    Delivery.QUERY,
+    reply_type=m.MovementAuthorityReply,
+)
 MOVEMENT_AUTHORITY_ACK: Topic[m.MovementAuthorityAck] = Topic(
-    "movement_authority_ack", "ato/ob/{vehicle}/ma_ack", m.MovementAuthorityAck,
-    Direction.ONBOARD_TO_TRACKSIDE, Delivery.FIFO,
-)  # fmt: skip
+    "movement_authority_ack",
+    "ato/ob/{vehicle}/ma_ack",
+    m.MovementAuthorityAck,
+    Direction.ONBOARD_TO_TRACKSIDE,
+    Delivery.FIFO,
+)
 
 ALIVE_ONBOARD = "ato/alive/ob/{vehicle}"
 """Liveliness token of an onboard process (CONTRACT.md §5)."""

@@ -38,10 +38,12 @@ def wait_for(
 def zenoh_pair() -> Iterator[tuple[zenoh.Session, zenoh.Session]]:
     """Two peer sessions in this process, the second connected to the first over loopback."""
     endpoint = loopback_endpoint()
-    with open_session(ZenohSettings(mode="peer", connect=(), listen=(endpoint,))) as first:
-        with open_session(ZenohSettings(mode="peer", connect=(endpoint,))) as second:
-            assert wait_for(lambda: bool(first.info.peers_zid()))
-            yield first, second
+    with (
+        open_session(ZenohSettings(mode="peer", connect=(), listen=(endpoint,))) as first,
+        open_session(ZenohSettings(mode="peer", connect=(endpoint,))) as second,
+    ):
+        assert wait_for(lambda: bool(first.info.peers_zid()))
+        yield first, second
 
 
 @contextmanager

@@ -79,9 +79,17 @@ def test_package_all_reexports_public_names_of_private_modules(package: str) -> 
 # One home for the physical constants (docs/decisions.md, "One home for the vehicle's data and
 # the physical constants"): protocol.units holds GRAVITY_MPS2 and MPS_PER_KMH; onboard imports.
 CONVERSION_NAMES = frozenset(
-    {"GRAVITY", "GRAVITY_MPS2", "G_MPS2", "KMH", "KMH_PER_MPS", "MPS_PER_KMH", "MPS_TO_KMH",
-     "KMH_TO_MPS"}
-)  # fmt: skip
+    {
+        "GRAVITY",
+        "GRAVITY_MPS2",
+        "G_MPS2",
+        "KMH",
+        "KMH_PER_MPS",
+        "MPS_PER_KMH",
+        "MPS_TO_KMH",
+        "KMH_TO_MPS",
+    }
+)
 CONSTANT_VALUES = (9.81, 9.80665, 3.6, 1.0 / 3.6)
 
 
@@ -153,9 +161,22 @@ def test_units_have_one_home() -> None:
 # The bench leaves the train (issue 17 item 5): onboard/ holds only what runs in the onboard
 # process; whatever drives or scores a part for tests and benches lives in deploy/bench/.
 HARNESS_STEMS = frozenset(
-    {"bench", "catalogue", "closed_loop", "drive", "harness", "lockstep", "manoeuvres",
-     "mission", "plots", "recording", "responder", "runner", "scenarios"}
-)  # fmt: skip
+    {
+        "bench",
+        "catalogue",
+        "closed_loop",
+        "drive",
+        "harness",
+        "lockstep",
+        "manoeuvres",
+        "mission",
+        "plots",
+        "recording",
+        "responder",
+        "runner",
+        "scenarios",
+    }
+)
 HARNESS_IMPORTS = frozenset({"pytest", "hypothesis", "_pytest"})
 PRODUCTION_DESPITE_THE_NAME = {
     # The VCU as fitted to the bogie-fidelity vehicle (VcuDrive): the vehicle's drive, stepped
@@ -186,8 +207,10 @@ def test_the_harness_rule_catches_one(tmp_path: Path) -> None:
     sample = tmp_path / "x.py"
     sample.write_text("import pytest\nfrom hypothesis import given\n")
     assert _imported_top_levels(sample) & HARNESS_IMPORTS == {"pytest", "hypothesis"}
-    assert _is_harness_name("runner") and _is_harness_name("vc_catalogue")
-    assert not _is_harness_name("listener") and not _is_harness_name("driving_function")
+    assert _is_harness_name("runner")
+    assert _is_harness_name("vc_catalogue")
+    assert not _is_harness_name("listener")
+    assert not _is_harness_name("driving_function")
 
 
 # The truth boundary (ARCHITECTURE.md, issue 17 item 1): only ``onboard/plant/`` reads the
@@ -200,21 +223,39 @@ PLANT = "onboard.plant"
 
 PUBLIC_OUTPUTS = f"{PLANT}.readings"
 """Any name of this module may be imported: it is what the sensors deliver."""
-NOT_TRUTH = frozenset({
-    # The actuator interface the VCU commands the plant through.
-    "ActuatorCommands",
-    # Vehicle data: what the vehicle is built as, not what it is doing.
-    "PointMassParameters", "URV_PARAMETERS", "BogieParameters", "URV_BOGIE_PARAMETERS",
-    "PowertrainParameters", "GRAVITY_MPS2", "CURVE_COEFFICIENT_M", "MIN_POWER_SPEED_MPS",
-    # Settings of the sensor models (their noise and injected faults), not their readings.
-    "SensorNoise", "SensorFaults", "TimeWindow",
-})  # fmt: skip
+NOT_TRUTH = frozenset(
+    {
+        # The actuator interface the VCU commands the plant through.
+        "ActuatorCommands",
+        # Vehicle data: what the vehicle is built as, not what it is doing.
+        "PointMassParameters",
+        "URV_PARAMETERS",
+        "BogieParameters",
+        "URV_BOGIE_PARAMETERS",
+        "PowertrainParameters",
+        "GRAVITY_MPS2",
+        "CURVE_COEFFICIENT_M",
+        "MIN_POWER_SPEED_MPS",
+        # Settings of the sensor models (their noise and injected faults), not their readings.
+        "SensorNoise",
+        "SensorFaults",
+        "TimeWindow",
+    }
+)
 """Names that may be imported from the rest of ``onboard.plant``."""
 COMPOSITION_ROOT = ONBOARD / "node.py"
-VEHICLE_OUTPUTS = frozenset({
-    "step", "take_datagrams", "take_wheel_readings", "take_balise_detections", "wheels", "drive",
-    "powertrain_reading", "force_limits_n",
-})  # fmt: skip
+VEHICLE_OUTPUTS = frozenset(
+    {
+        "step",
+        "take_datagrams",
+        "take_wheel_readings",
+        "take_balise_detections",
+        "wheels",
+        "drive",
+        "powertrain_reading",
+        "force_limits_n",
+    }
+)
 """What the node may touch of the simulated vehicle: stepping it, and its sensors' outputs."""
 
 
@@ -302,7 +343,8 @@ def _touched_on_the_vehicle(source: str) -> set[str]:
 
 def test_the_node_only_steps_the_vehicle_and_takes_its_outputs() -> None:
     touched = _touched_on_the_vehicle(COMPOSITION_ROOT.read_text())
-    assert touched and touched <= VEHICLE_OUTPUTS, sorted(touched - VEHICLE_OUTPUTS)
+    assert touched
+    assert touched <= VEHICLE_OUTPUTS, sorted(touched - VEHICLE_OUTPUTS)
 
 
 def test_the_node_check_catches_a_read_of_the_truth() -> None:

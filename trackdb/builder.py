@@ -121,15 +121,23 @@ class LineBuilder:
         return self
 
     def stopping_point(
-        self, id: str, name: str, position_m: float, *, tolerance_m: float = 0.5,
+        self,
+        id: str,
+        name: str,
+        position_m: float,
+        *,
+        tolerance_m: float = 0.5,
         platform_length_m: float = 100.0,
-    ) -> Self:  # fmt: skip
+    ) -> Self:
         self._stops.append(
             StoppingPoint(
-                id=id, name=name, position_m=position_m, stopping_tolerance_m=tolerance_m,
+                id=id,
+                name=name,
+                position_m=position_m,
+                stopping_tolerance_m=tolerance_m,
                 platform_length_m=platform_length_m,
             )
-        )  # fmt: skip
+        )
         return self
 
     def balise_group(

@@ -100,9 +100,12 @@ class JourneyTimingPoint(BaseModel):
     departure_time_s: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
     minimum_dwell_s: float = Field(default=0.0, ge=0.0, allow_inf_nan=False, description="[s]")
     stopping_tolerance_m: float | None = Field(
-        default=None, ge=0.1, le=100.0, allow_inf_nan=False,
+        default=None,
+        ge=0.1,
+        le=100.0,
+        allow_inf_nan=False,
         description="± [m]; the stopping point's own tolerance when not given",
-    )  # fmt: skip
+    )
     end_of_journey: bool = False
 
     @model_validator(mode="after")
@@ -240,9 +243,13 @@ def _legs(
 ) -> list[LegCheck]:
     stops_at = [tp.kind is m.TimingPointKind.STOPPING for tp in journey.timing_points]
     minimum = minimum_running_times(
-        track_map, vehicle, journey.start_position_m, distances, stops_at,
+        track_map,
+        vehicle,
+        journey.start_position_m,
+        distances,
+        stops_at,
         cap_mps=journey.max_speed_mps,
-    )  # fmt: skip
+    )
     legs = []
     departure = 0.0
     previous_id = "start"
@@ -250,11 +257,14 @@ def _legs(
     for index, tp in enumerate(journey.timing_points):
         legs.append(
             LegCheck(
-                index=index, from_id=previous_id, to_id=tp.id,
+                index=index,
+                from_id=previous_id,
+                to_id=tp.id,
                 distance_m=distances[index] - previous_distance,
-                scheduled_s=tp.arrival_time_s - departure, minimum_s=minimum[index],
+                scheduled_s=tp.arrival_time_s - departure,
+                minimum_s=minimum[index],
             )
-        )  # fmt: skip
+        )
         if tp.kind is m.TimingPointKind.STOPPING:
             departure = tp.departure_time_s or tp.arrival_time_s + tp.minimum_dwell_s
         else:
@@ -347,14 +357,24 @@ def journey_profile_message(
         raise ValueError("only a valid journey becomes a journey profile")
     points = tuple(
         m.TimingPoint(
-            id=tp.id, position_m=position, kind=tp.kind, arrival_time_s=tp.arrival_time_s,
-            arrival_tolerance_s=tp.arrival_window_s, departure_time_s=tp.departure_time_s,
-            minimum_dwell_s=tp.minimum_dwell_s, end_of_journey=tp.end_of_journey,
+            id=tp.id,
+            position_m=position,
+            kind=tp.kind,
+            arrival_time_s=tp.arrival_time_s,
+            arrival_tolerance_s=tp.arrival_window_s,
+            departure_time_s=tp.departure_time_s,
+            minimum_dwell_s=tp.minimum_dwell_s,
+            end_of_journey=tp.end_of_journey,
         )
         for tp, position in zip(journey.timing_points, check.positions_m, strict=True)
-    )  # fmt: skip
+    )
     return m.JourneyProfile(
-        vehicle_id=vehicle_id, journey_id=journey.id, version=version, status=status,
-        line_id=journey.line_id, track_data_version=track_data_version,
-        max_speed_mps=journey.max_speed_mps, timing_points=points,
-    )  # fmt: skip
+        vehicle_id=vehicle_id,
+        journey_id=journey.id,
+        version=version,
+        status=status,
+        line_id=journey.line_id,
+        track_data_version=track_data_version,
+        max_speed_mps=journey.max_speed_mps,
+        timing_points=points,
+    )

@@ -208,9 +208,10 @@ class Line(_Model):
         problems = _line_problems(self)
         if problems:
             raise PydanticCustomError(
-                "line_rules", "{count} problem(s): {text}",
+                "line_rules",
+                "{count} problem(s): {text}",
                 {"count": len(problems), "text": "; ".join(problems), "problems": problems},
-            )  # fmt: skip
+            )
         return self
 
     def version(self) -> str:

@@ -37,9 +37,15 @@ def bologna_ring() -> Line:
     # Altitude gained on the straights is lost in the last curve, so the ring closes.
     closing_gradient = -(short * 1.0) / quarter
     builder = LineBuilder(
-        id="bologna-ring", name="Bologna test ring (synthetic)", ring=True, etcs_level=1,
-        origin_lat_deg=44.5120, origin_lon_deg=11.3180, origin_alt_m=42.0, heading_deg=0.0,
-    )  # fmt: skip
+        id="bologna-ring",
+        name="Bologna test ring (synthetic)",
+        ring=True,
+        etcs_level=1,
+        origin_lat_deg=44.5120,
+        origin_lon_deg=11.3180,
+        origin_alt_m=42.0,
+        heading_deg=0.0,
+    )
     (
         builder.straight(RING_LONG_STRAIGHT_M, speed_kmh=80, gradient_permille=2.0)
         .curve(quarter, RING_RADIUS_M, speed_kmh=60, gradient_permille=1.0)
@@ -66,10 +72,15 @@ MILANO_BOLOGNA_LENGTH_M = 200_000.0
 
 def milano_bologna() -> Line:
     builder = LineBuilder(
-        id="milano-bologna", name="Milano – Bologna high-speed line (synthetic)", ring=False,
-        etcs_level=2, origin_lat_deg=45.4340, origin_lon_deg=9.2380, origin_alt_m=105.0,
+        id="milano-bologna",
+        name="Milano – Bologna high-speed line (synthetic)",
+        ring=False,
+        etcs_level=2,
+        origin_lat_deg=45.4340,
+        origin_lon_deg=9.2380,
+        origin_alt_m=105.0,
         heading_deg=-43.5,
-    )  # fmt: skip
+    )
     # (length [m], radius [m] or None, speed [km/h], gradient [‰])
     walk: list[tuple[float, float | None, float, float]] = [
         (4_000, None, 120, 0.0),

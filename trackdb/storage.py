@@ -123,9 +123,15 @@ class LineSummary:
         if created.tzinfo is None:  # SQLite returns naive datetimes; they were stored in UTC
             created = created.replace(tzinfo=UTC)
         return cls(
-            id=row.line_id, version=row.version, name=row.name, length_m=row.length_m,
-            ring=row.ring, etcs_level=row.etcs_level, created_at=created, current=current,
-        )  # fmt: skip
+            id=row.line_id,
+            version=row.version,
+            name=row.name,
+            length_m=row.length_m,
+            ring=row.ring,
+            etcs_level=row.etcs_level,
+            created_at=created,
+            current=current,
+        )
 
 
 def import_line(session: Session, document: Line | Mapping[str, Any] | str | bytes) -> Line:
@@ -237,7 +243,13 @@ def _version_row(session: Session, line_id: str, version: str) -> LineVersionRow
 
 def _new_version_row(line: Line, version: str) -> LineVersionRow:
     return LineVersionRow(
-        line_id=line.id, version=version, schema_version=line.schema_version, name=line.name,
-        length_m=line.length_m, ring=line.ring, etcs_level=line.etcs_level,
-        document=line.model_dump_json(round_trip=True), created_at=datetime.now(UTC),
-    )  # fmt: skip
+        line_id=line.id,
+        version=version,
+        schema_version=line.schema_version,
+        name=line.name,
+        length_m=line.length_m,
+        ring=line.ring,
+        etcs_level=line.etcs_level,
+        document=line.model_dump_json(round_trip=True),
+        created_at=datetime.now(UTC),
+    )

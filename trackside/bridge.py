@@ -280,9 +280,12 @@ class ZenohBridge:
         return ack
 
     def command_async(
-        self, command: m.Command, on_done: Callable[[m.CommandAck | None], None], *,
+        self,
+        command: m.Command,
+        on_done: Callable[[m.CommandAck | None], None],
+        *,
         timeout_s: float,
-    ) -> None:  # fmt: skip
+    ) -> None:
         """Send a command without waiting. ``on_done`` is called once, on Zenoh's thread, with
         the acknowledgement, or with None when the query ended without a valid one."""
         key = COMMAND.key(vehicle=command.vehicle_id)
@@ -308,9 +311,11 @@ class ZenohBridge:
 
         try:
             self._zenoh.get(
-                key, zenoh.handlers.Callback(on_reply, lambda: finish(None)),
-                payload=COMMAND.encode(command), timeout=timeout_s,
-            )  # fmt: skip
+                key,
+                zenoh.handlers.Callback(on_reply, lambda: finish(None)),
+                payload=COMMAND.encode(command),
+                timeout=timeout_s,
+            )
         except zenoh.ZError as exc:
             raise TransportError(f"command on {key} failed: {exc}") from exc
 

@@ -23,10 +23,13 @@ EVENT_QUEUE = 256
 def event_public(event: m.Event, received_at: datetime) -> dict[str, Any]:
     """An event as ``GET /vehicles/{id}/events`` and the WebSocket show it."""
     return {
-        "sim_time_s": event.sim_time_s, "received_at": received_at.isoformat(),
-        "severity": event.severity.value, "code": event.code, "text": event.text,
+        "sim_time_s": event.sim_time_s,
+        "received_at": received_at.isoformat(),
+        "severity": event.severity.value,
+        "code": event.code,
+        "text": event.text,
         "seq": event.seq,
-    }  # fmt: skip
+    }
 
 
 class VehicleFeed:

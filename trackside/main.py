@@ -102,17 +102,22 @@ def _audit_answer(recorder: Recorder, answer: OperatorAnswer) -> None:
     """Queue the audit entry of a simulated operator's answer (called on Zenoh's thread)."""
     ack = answer.ack
     result = (
-        audit.AuditResult.TIMEOUT if ack is None
-        else audit.AuditResult.ACCEPTED if ack.accepted else audit.AuditResult.REFUSED
-    )  # fmt: skip
+        audit.AuditResult.TIMEOUT
+        if ack is None
+        else audit.AuditResult.ACCEPTED
+        if ack.accepted
+        else audit.AuditResult.REFUSED
+    )
     recorder.offer(
         audit.audit_entry(
-            user=SIMULATED_OPERATOR, vehicle_id=answer.command.vehicle_id,
+            user=SIMULATED_OPERATOR,
+            vehicle_id=answer.command.vehicle_id,
             action=audit.command_action(answer.command.body),
-            request=answer.command.body.model_dump(mode="json"), result=result,
+            request=answer.command.body.model_dump(mode="json"),
+            result=result,
             detail=None if ack is None else ack.reason,
         )
-    )  # fmt: skip
+    )
 
 
 def _simulated_operator(
@@ -124,10 +129,12 @@ def _simulated_operator(
         lambda command, on_done: bridge.command_async(
             command, on_done, timeout_s=settings.command_timeout_s
         ),
-        settings.simulated_operators, reaction_s=settings.simulated_operator_reaction_s,
+        settings.simulated_operators,
+        reaction_s=settings.simulated_operator_reaction_s,
         kinds=settings.simulated_operator_kinds,
-        on_answer=partial(_audit_answer, recorder), first_command_id=time.time_ns() // 1000,
-    )  # fmt: skip
+        on_answer=partial(_audit_answer, recorder),
+        first_command_id=time.time_ns() // 1000,
+    )
     return SimulatedOperatorThread(
         operator, partial(_reported_status, bridge), start=settings.simulated_operator_thread
     )

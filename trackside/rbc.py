@@ -223,9 +223,12 @@ class RbcEmulator:
             extent = built(lambda: extent_from(old.start_m, new_end, sections, None))
             check_on_line(extent, current.line_id, self._info(current.line_id))
             return self._commit(
-                vehicle_id, m.MovementAuthorityChange.EXTENDED, current.line_id,
-                current.line_version, extent,
-            )  # fmt: skip
+                vehicle_id,
+                m.MovementAuthorityChange.EXTENDED,
+                current.line_id,
+                current.line_version,
+                extent,
+            )
 
     def shorten(
         self, vehicle_id: str, end: m.MovementAuthorityEnd | float
@@ -259,18 +262,24 @@ class RbcEmulator:
                 vehicle_id, current.line_id, extent, info, reach_m=old.end_of_authority_m
             )
             return self._commit(
-                vehicle_id, m.MovementAuthorityChange.SHORTENED, current.line_id,
-                current.line_version, extent,
-            )  # fmt: skip
+                vehicle_id,
+                m.MovementAuthorityChange.SHORTENED,
+                current.line_id,
+                current.line_version,
+                extent,
+            )
 
     def revoke(self, vehicle_id: str) -> m.MovementAuthorityMessage:
         """Withdraw the vehicle's MA (the onboard applies it as an emergency stop)."""
         with self._change_lock:
             current = self._require(vehicle_id)
             return self._commit(
-                vehicle_id, m.MovementAuthorityChange.REVOKED, current.line_id,
-                current.line_version, None,
-            )  # fmt: skip
+                vehicle_id,
+                m.MovementAuthorityChange.REVOKED,
+                current.line_id,
+                current.line_version,
+                None,
+            )
 
     # -- temporary speed restrictions ---------------------------------------------------------
 
@@ -412,9 +421,11 @@ class RbcEmulator:
                 _log.exception("MA listener failed on %s ma_id %d", vehicle_id, message.ma_id)
         _log.info(
             "MA %s for %s: ma_id %d, EoA %s",
-            change.value, vehicle_id, message.ma_id,
+            change.value,
+            vehicle_id,
+            message.ma_id,
             "none" if extent is None else f"{extent.end_of_authority_m:g} m",
-        )  # fmt: skip
+        )
         return message
 
     def _publish(self, message: m.MovementAuthorityMessage) -> None:

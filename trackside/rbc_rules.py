@@ -86,9 +86,11 @@ def extent_from(
     track_description_m: float | None,
 ) -> m.MovementAuthorityExtent:
     return m.MovementAuthorityExtent(
-        **end.model_dump(), start_m=start_m, sections=sections,
+        **end.model_dump(),
+        start_m=start_m,
+        sections=sections,
         track_description_m=track_description_m,
-    )  # fmt: skip
+    )
 
 
 def cut_sections(

@@ -61,8 +61,11 @@ __all__ = [
 
 ScenarioFormat = Literal["yaml", "json", "toml"]
 _SUFFIXES: dict[str, ScenarioFormat] = {
-    ".yaml": "yaml", ".yml": "yaml", ".json": "json", ".toml": "toml",
-}  # fmt: skip
+    ".yaml": "yaml",
+    ".yml": "yaml",
+    ".json": "json",
+    ".toml": "toml",
+}
 _ACTIONS = ("issue", "extend", "shorten", "revoke")
 TIME_TOLERANCE_S = 1e-9
 """An action is due when the clock is within this of its time [s]: sums of floats round."""
@@ -206,8 +209,12 @@ class RbcScenarioRunner:
                 message, error = None, str(exc)
                 _log.warning(
                     "RBC scenario action %d (%s %s at %g s) refused: %s",
-                    index, action.action, action.vehicle, action.at_s, exc,
-                )  # fmt: skip
+                    index,
+                    action.action,
+                    action.vehicle,
+                    action.at_s,
+                    exc,
+                )
             ran.append(
                 ActionOutcome(
                     index=index, action=action, time_s=now_s, message=message, error=error
@@ -230,9 +237,12 @@ class RbcScenarioThread:
         self.runner = runner
         self._stop = threading.Event()
         self._thread = threading.Thread(
-            target=runner.run, args=(self._stop,), kwargs={"period_s": period_s},
-            name="rbc-scenario", daemon=True,
-        )  # fmt: skip
+            target=runner.run,
+            args=(self._stop,),
+            kwargs={"period_s": period_s},
+            name="rbc-scenario",
+            daemon=True,
+        )
         self._thread.start()
 
     def close(self, timeout_s: float = 5.0) -> None:

@@ -40,22 +40,34 @@ class RecorderStats:
 
 def event_row(event: m.Event, received_at: datetime) -> VehicleEvent:
     return VehicleEvent(
-        vehicle_id=event.vehicle_id, seq=event.seq, sim_time_s=event.sim_time_s,
-        received_at=received_at, severity=event.severity.value, code=event.code, text=event.text,
-    )  # fmt: skip
+        vehicle_id=event.vehicle_id,
+        seq=event.seq,
+        sim_time_s=event.sim_time_s,
+        received_at=received_at,
+        severity=event.severity.value,
+        code=event.code,
+        text=event.text,
+    )
 
 
 def telemetry_row(report: m.StatusReport, received_at: datetime) -> TelemetrySample:
     vital = report.vital_control
     return TelemetrySample(
-        vehicle_id=report.vehicle_id, sim_time_s=report.sim_time_s, received_at=received_at,
-        position_m=report.position_m, speed_mps=report.speed_mps,
-        traction_force_n=report.traction_force_n, reference_speed_mps=report.reference_speed_mps,
+        vehicle_id=report.vehicle_id,
+        sim_time_s=report.sim_time_s,
+        received_at=received_at,
+        position_m=report.position_m,
+        speed_mps=report.speed_mps,
+        traction_force_n=report.traction_force_n,
+        reference_speed_mps=report.reference_speed_mps,
         permitted_speed_mps=report.permitted_speed_mps,
-        intervention_speed_mps=report.intervention_speed_mps, ato_state=report.ato_state.value,
-        etcs_mode=report.etcs_mode.value, sc_state=report.sc_state.value,
-        eb=bool(vital is not None and vital.eb_commanded), journey_id=report.journey_id,
-    )  # fmt: skip
+        intervention_speed_mps=report.intervention_speed_mps,
+        ato_state=report.ato_state.value,
+        etcs_mode=report.etcs_mode.value,
+        sc_state=report.sc_state.value,
+        eb=bool(vital is not None and vital.eb_commanded),
+        journey_id=report.journey_id,
+    )
 
 
 @dataclass

@@ -66,10 +66,11 @@ class SessionManager:
             request.vehicle_id, version, opened_s=now_s, last_report_s=now_s
         )
         return m.SessionAccept(
-            trackside_id=self.trackside_id, version=version,
+            trackside_id=self.trackside_id,
+            version=version,
             response_timeout_s=self.response_timeout_s,
             status_interval_s=self.status_interval_s,
-        )  # fmt: skip
+        )
 
     def on_status(self, report: m.StatusReport, now_s: float) -> m.StatusAck | None:
         """The STRAck for a report of an established session; None for a stale report or one

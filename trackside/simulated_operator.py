@@ -62,10 +62,15 @@ class SimulatedOperator:
     """Confirms the operator requests of ``vehicles`` (see the module docstring)."""
 
     def __init__(
-        self, send: CommandSender, vehicles: Iterable[str], *, reaction_s: float = 0.5,
+        self,
+        send: CommandSender,
+        vehicles: Iterable[str],
+        *,
+        reaction_s: float = 0.5,
         kinds: Iterable[m.OperatorRequestKind] = DEFAULT_KINDS,
-        on_answer: Callable[[OperatorAnswer], None] | None = None, first_command_id: int = 1,
-    ) -> None:  # fmt: skip
+        on_answer: Callable[[OperatorAnswer], None] | None = None,
+        first_command_id: int = 1,
+    ) -> None:
         self._send = send
         self.vehicles = frozenset(vehicles)
         self.reaction_s = reaction_s
@@ -109,9 +114,11 @@ class SimulatedOperator:
                 )
                 body = m.OperatorConfirmCommand(request=pending.kind, number=pending.number)
                 command = m.Command(
-                    vehicle_id=status.vehicle_id, command_id=next(self._ids),
-                    issued_by=SIMULATED_OPERATOR, body=body,
-                )  # fmt: skip
+                    vehicle_id=status.vehicle_id,
+                    command_id=next(self._ids),
+                    issued_by=SIMULATED_OPERATOR,
+                    body=body,
+                )
                 due.append((command, key))
         # Sent outside the lock: an acknowledgement may come back on another thread at once.
         for command, key in due:
@@ -162,10 +169,13 @@ class SimulatedOperatorThread:
     """Steps ``operator`` on the latest status of each of its vehicles every ``period_s``."""
 
     def __init__(
-        self, operator: SimulatedOperator,
-        latest_status: Callable[[str], m.StatusReport | None], *, period_s: float = 0.1,
+        self,
+        operator: SimulatedOperator,
+        latest_status: Callable[[str], m.StatusReport | None],
+        *,
+        period_s: float = 0.1,
         start: bool = True,
-    ) -> None:  # fmt: skip
+    ) -> None:
         self.operator = operator
         self._latest = latest_status
         self._period_s = period_s

@@ -59,9 +59,13 @@ def field_test_lap(solver: str, plan_kind: str = "energy") -> tuple[ClosedLoopRe
     controller = NmpcController(p, NmpcConfig(solver=solver))  # type: ignore[arg-type]
     started = time.perf_counter()
     record = run_autonomous_journey(
-        plan, stops=[Stop(d, a) for d, a, _ in FIELD_TEST_STOPS], model=p, truth=truth,
-        controller=controller, duration_s=1010.0,
-    )  # fmt: skip
+        plan,
+        stops=[Stop(d, a) for d, a, _ in FIELD_TEST_STOPS],
+        model=p,
+        truth=truth,
+        controller=controller,
+        duration_s=1010.0,
+    )
     return record, time.perf_counter() - started
 
 
@@ -78,10 +82,14 @@ def _plan_energies(
     for leg in lspb.legs:
         length = leg.segment.distance_m
         best += optimal_leg(
-            track_map, model, start_chainage_m=start_m + leg.start_distance_m,
-            distance_m=length, duration_s=leg.segment.duration_s, cap_mps=cap,
+            track_map,
+            model,
+            start_chainage_m=start_m + leg.start_distance_m,
+            distance_m=length,
+            duration_s=leg.segment.duration_s,
+            cap_mps=cap,
             step_m=max(10.0, length / 600.0),
-        ).traction_energy_j  # fmt: skip
+        ).traction_energy_j
     return (
         plan_traction_energy_j(lspb, model),
         plan_traction_energy_j(ours, model),
@@ -101,16 +109,28 @@ def energy_comparison(console: Console) -> dict[str, dict[str, float]]:
     }
     results: dict[str, dict[str, float]] = {}
     table = Table(title="Traction energy at the wheel of the plans [kWh]")
-    for column in ("case", "(a) LSPB", "ours", "(b) optimum", "ours vs (a)", "ours vs (b)",
-                   "legs kept LSPB"):  # fmt: skip
+    for column in (
+        "case",
+        "(a) LSPB",
+        "ours",
+        "(b) optimum",
+        "ours vs (a)",
+        "ours vs (b)",
+        "legs kept LSPB",
+    ):
         table.add_column(column, justify="left" if column == "case" else "right")
     for name, (track_map, start_m, stops, limit) in cases.items():
         plain, ours, best, kept = _plan_energies(track_map, start_m, stops, limit)
         results[name] = {"lspb_j": plain, "ours_j": ours, "optimum_j": best, "kept": kept}
         table.add_row(
-            name, f"{plain / 3.6e6:.3f}", f"{ours / 3.6e6:.3f}", f"{best / 3.6e6:.3f}",
-            f"{100 * (ours / plain - 1):+.1f} %", f"{100 * (ours / best - 1):+.1f} %", str(kept),
-        )  # fmt: skip
+            name,
+            f"{plain / 3.6e6:.3f}",
+            f"{ours / 3.6e6:.3f}",
+            f"{best / 3.6e6:.3f}",
+            f"{100 * (ours / plain - 1):+.1f} %",
+            f"{100 * (ours / best - 1):+.1f} %",
+            str(kept),
+        )
     console.print(table)
     console.print("targets: ours ≥ 10 % below (a) and at most 5 % above (b)")
     return results
@@ -169,16 +189,34 @@ def bench_adf(*, plots_dir: Path | None = None) -> dict[str, dict[str, float]]:
             "wall_s": wall_s,
         }
     table = Table(title="NMPC on the field-test lap (N = 50, dt = 0.2 s: a 10 s horizon)")
-    for column in ("run", "solves", "fails", "median ms", "p99 ms", "max ms", "RMS km/h",
-                   "stops", "stop err m", "arrival s", "traction kWh"):  # fmt: skip
+    for column in (
+        "run",
+        "solves",
+        "fails",
+        "median ms",
+        "p99 ms",
+        "max ms",
+        "RMS km/h",
+        "stops",
+        "stop err m",
+        "arrival s",
+        "traction kWh",
+    ):
         table.add_column(column, justify="left" if column == "run" else "right")
     for name, r in results.items():
         table.add_row(
-            name, f"{r['solves']:.0f}", f"{r['failures']:.0f}", f"{r['median_ms']:.2f}",
-            f"{r['p99_ms']:.2f}", f"{r['max_ms']:.2f}", f"{r['speed_rms_kmh']:.3f}",
-            f"{r['stops']:.0f}", f"{r['max_stop_error_m']:.3f}",
-            f"{r['max_arrival_error_s']:.1f}", f"{r['traction_energy_kwh']:.3f}",
-        )  # fmt: skip
+            name,
+            f"{r['solves']:.0f}",
+            f"{r['failures']:.0f}",
+            f"{r['median_ms']:.2f}",
+            f"{r['p99_ms']:.2f}",
+            f"{r['max_ms']:.2f}",
+            f"{r['speed_rms_kmh']:.3f}",
+            f"{r['stops']:.0f}",
+            f"{r['max_stop_error_m']:.3f}",
+            f"{r['max_arrival_error_s']:.1f}",
+            f"{r['traction_energy_kwh']:.3f}",
+        )
     console.print(table)
     console.print(
         f"targets: p99 ≤ {TARGET_P99_MS} ms for our configuration (sqpmethod + qrqp); every "

@@ -78,15 +78,19 @@ def run_autonomous_journey(
     for k in range(round(duration_s / control_s)):
         now = k * control_s
         force = driving.force_n(
-            now, distance_m=plant.position_m, speed_mps=plant.speed_mps,
+            now,
+            distance_m=plant.position_m,
+            speed_mps=plant.speed_mps,
             applied_force_n=plant.applied_force_n,
-        )  # fmt: skip
+        )
         for _ in range(substeps):
             chainage = plan.chainage_m(plant.position_m)
             plant.step(
-                plant_step_s, force, gradient_permille=track_map.gradient_permille(chainage),
+                plant_step_s,
+                force,
+                gradient_permille=track_map.gradient_permille(chainage),
                 curve_radius_m=track_map.curve_radius_m(chainage),
-            )  # fmt: skip
+            )
             overspeed = max(overspeed, plant.speed_mps - track_map.mrsp_mps(chainage))
         times.append(now + control_s)
         speeds.append(plant.speed_mps)
@@ -94,11 +98,15 @@ def run_autonomous_journey(
         accelerations.append(plant.acceleration_mps2)
         _note_arrival(arrivals, stops, now + control_s, plant)
     return ClosedLoopRecord(
-        times_s=np.array(times), speeds_mps=np.array(speeds),
-        reference_speeds_mps=np.array(references), accelerations_mps2=np.array(accelerations),
-        max_overspeed_mps=float(overspeed), arrivals=arrivals,
-        traction_energy_j=plant.traction_energy_j, nmpc=controller.stats,
-    )  # fmt: skip
+        times_s=np.array(times),
+        speeds_mps=np.array(speeds),
+        reference_speeds_mps=np.array(references),
+        accelerations_mps2=np.array(accelerations),
+        max_overspeed_mps=float(overspeed),
+        arrivals=arrivals,
+        traction_energy_j=plant.traction_energy_j,
+        nmpc=controller.stats,
+    )
 
 
 def _note_arrival(
@@ -158,10 +166,15 @@ def run_handover_sequence(
         requests: list[ModeRequest] = []
         if k == round(40.0 / control_s):
             plan = replan_from_state(
-                track_map, model, now_s=now, start_chainage_m=start_chainage_m,
-                distance_m=plant.position_m, speed_mps=plant.speed_mps, stop_distance_m=1200.0,
+                track_map,
+                model,
+                now_s=now,
+                start_chainage_m=start_chainage_m,
+                distance_m=plant.position_m,
+                speed_mps=plant.speed_mps,
+                stop_distance_m=1200.0,
                 cruise_mps=40 * MPS_PER_KMH,
-            )  # fmt: skip
+            )
             autonomous = AutonomousDriving(plan, model, nmpc)
             requests.append(ModeRequest.AUTONOMOUS)
         if k == round(100.0 / control_s):
@@ -172,15 +185,20 @@ def run_handover_sequence(
         u_rd = 0.0
         if sc.needs_remote:
             u_rd = rd.step(
-                control_s, target_speed_mps=target_mps, speed_mps=plant.speed_mps,
-                gradient_permille=gradient, force_limits_n=limits,
-            )  # fmt: skip
+                control_s,
+                target_speed_mps=target_mps,
+                speed_mps=plant.speed_mps,
+                gradient_permille=gradient,
+                force_limits_n=limits,
+            )
         u_ad = 0.0
         if autonomous is not None and (sc.needs_autonomous or requests):
             u_ad = autonomous.force_n(
-                now, distance_m=plant.position_m, speed_mps=plant.speed_mps,
+                now,
+                distance_m=plant.position_m,
+                speed_mps=plant.speed_mps,
                 applied_force_n=plant.applied_force_n,
-            )  # fmt: skip
+            )
         outputs = {"remote_force_n": u_rd, "autonomous_force_n": u_ad}
         for mode in requests:
             old = sc.output(**outputs)
@@ -197,14 +215,20 @@ def run_handover_sequence(
         for _ in range(round(control_s / plant_step_s)):
             chainage = track_map.normalise(start_chainage_m + plant.position_m)
             plant.step(
-                plant_step_s, applied, gradient_permille=track_map.gradient_permille(chainage),
+                plant_step_s,
+                applied,
+                gradient_permille=track_map.gradient_permille(chainage),
                 curve_radius_m=track_map.curve_radius_m(chainage),
-            )  # fmt: skip
+            )
         times.append(now)
         forces.append(applied)
         speeds.append(plant.speed_mps)
         states.append(sc.state.value)
     return HandoverRecord(
-        times_s=np.array(times), forces_n=np.array(forces), speeds_mps=np.array(speeds),
-        states=states, switch_indices=sorted(set(switches)), switch_jumps_n=jumps,
-    )  # fmt: skip
+        times_s=np.array(times),
+        forces_n=np.array(forces),
+        speeds_mps=np.array(speeds),
+        states=states,
+        switch_indices=sorted(set(switches)),
+        switch_jumps_n=jumps,
+    )

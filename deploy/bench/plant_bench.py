@@ -166,10 +166,12 @@ def bench_plant(
         table.add_column(column, justify="left" if column in ("model", "measure") else "right")
     factor_ok = bogie["real_time_factor"] >= TARGET_REAL_TIME_FACTOR
     table.add_row(
-        "bogie (10 DOF)", f"real-time factor, {bogie['distance_km']:.1f} km in "
-        f"{bogie['simulated_s']:.0f} s simulated", f"{bogie['real_time_factor']:.1f}×",
+        "bogie (10 DOF)",
+        f"real-time factor, {bogie['distance_km']:.1f} km in "
+        f"{bogie['simulated_s']:.0f} s simulated",
+        f"{bogie['real_time_factor']:.1f}×",
         f"{_verdict(factor_ok)} ≥ {TARGET_REAL_TIME_FACTOR:g}×",
-    )  # fmt: skip
+    )
     table.add_row("", "wall time", f"{bogie['wall_s']:.1f} s", "")
     table.add_row("", "top speed", f"{bogie['top_speed_kmh']:.1f} km/h", "")
     table.add_row(
@@ -179,9 +181,10 @@ def bench_plant(
         ok = point_mass[figure] <= TARGET_POINT_MASS_STEP_US
         table.add_row(
             "point mass" if figure == "median_us" else "",
-            f"step cost, {figure.removesuffix('_us')}", f"{point_mass[figure]:.2f} µs",
+            f"step cost, {figure.removesuffix('_us')}",
+            f"{point_mass[figure]:.2f} µs",
             f"{_verdict(ok)} ≤ {TARGET_POINT_MASS_STEP_US:g} µs",
-        )  # fmt: skip
+        )
     console = Console(width=100)
     console.print(table)
     console.print(

@@ -88,8 +88,7 @@ class ScenarioSummary:
 def run_once(scenario: str, *, seed: int | None = None, timeout_s: float = 3600.0) -> RunSample:
     """Run ``ato run SCENARIO --fast`` in a new interpreter and read its ``kpis.json``."""
     with tempfile.TemporaryDirectory(prefix="ato-bench-run-") as directory:
-        command = [sys.executable, "-m", "deploy", "run", scenario, "--fast",
-                   "--report", directory]  # fmt: skip
+        command = [sys.executable, "-m", "deploy", "run", scenario, "--fast", "--report", directory]
         if seed is not None:
             command += ["--seed", str(seed)]
         try:
@@ -140,29 +139,45 @@ def _factor(value: float | None) -> str:
 
 def _table(summaries: Sequence[ScenarioSummary]) -> Table:
     table = Table(title="Whole stack in lockstep (`ato run --fast`), one process per run")
-    for column in ("scenario", "runs", "passed", "simulated", "wall (median)",
-                   "factor median", "worst", "best", "target"):  # fmt: skip
+    for column in (
+        "scenario",
+        "runs",
+        "passed",
+        "simulated",
+        "wall (median)",
+        "factor median",
+        "worst",
+        "best",
+        "target",
+    ):
         table.add_column(column, justify="left" if column == "scenario" else "right")
     for summary in summaries:
         verdict = summary.meets_target
-        target = "" if summary.target is None else (
-            f"{'✓' if verdict else '✗'} ≥ {summary.target:g}×"
-        )  # fmt: skip
+        target = (
+            "" if summary.target is None else (f"{'✓' if verdict else '✗'} ≥ {summary.target:g}×")
+        )
         not_run = f" ({summary.failed_to_run} did not run)" if summary.failed_to_run else ""
         table.add_row(
-            summary.scenario, str(summary.runs), f"{summary.passed}{not_run}",
+            summary.scenario,
+            str(summary.runs),
+            f"{summary.passed}{not_run}",
             "—" if summary.sim_time_s is None else f"{summary.sim_time_s:.0f} s",
             "—" if summary.wall_median_s is None else f"{summary.wall_median_s:.1f} s",
-            _factor(summary.factor_median), _factor(summary.factor_worst),
-            _factor(summary.factor_best), target,
-        )  # fmt: skip
+            _factor(summary.factor_median),
+            _factor(summary.factor_worst),
+            _factor(summary.factor_best),
+            target,
+        )
     return table
 
 
 def bench_run(
-    scenarios: Sequence[str] = DEFAULT_SCENARIOS, *, runs: int = 5, seed: int | None = None,
+    scenarios: Sequence[str] = DEFAULT_SCENARIOS,
+    *,
+    runs: int = 5,
+    seed: int | None = None,
     console: Console | None = None,
-) -> list[ScenarioSummary]:  # fmt: skip
+) -> list[ScenarioSummary]:
     """Run each scenario ``runs`` times, one after the other; print and return the figures."""
     console = console or Console(width=110)
     summaries = []

@@ -61,9 +61,12 @@ class AccuracyRow:
 
 def _drive(line_id: str, duration_s: float, **changes: object) -> DriveSettings:
     return DriveSettings(
-        line_id=line_id, duration_s=duration_s, cruise_kmh=LINES[line_id], seed=8,
+        line_id=line_id,
+        duration_s=duration_s,
+        cruise_kmh=LINES[line_id],
+        seed=8,
         **changes,  # type: ignore[arg-type]
-    )  # fmt: skip
+    )
 
 
 def accuracy_rows(durations_s: dict[str, float]) -> list[AccuracyRow]:
@@ -156,7 +159,7 @@ def accuracy_rows(durations_s: dict[str, float]) -> list[AccuracyRow]:
                 None,
             )
         )
-    return rows  # fmt: skip
+    return rows
 
 
 # -- fuzzing ---------------------------------------------------------------------------------
@@ -276,11 +279,12 @@ def imu_cost_us(count: int) -> tuple[float, float]:
     accelerations = rng.normal(0.0, 0.1, size=count)
     datagrams = [
         encode_input(
-            InputPacket(SensorType.IMU, (index + 1) % SEQ_MODULO,
-                        (float(a), 0.0, -9.81, 0.0, 0.0, 0.0))
+            InputPacket(
+                SensorType.IMU, (index + 1) % SEQ_MODULO, (float(a), 0.0, -9.81, 0.0, 0.0, 0.0)
+            )
         )
         for index, a in enumerate(accelerations)
-    ]  # fmt: skip
+    ]
     samples = np.empty(count)
     clock = time.perf_counter_ns
     for index, datagram in enumerate(datagrams):
@@ -316,8 +320,9 @@ def udp_throughput(seconds_of_drive: float) -> tuple[int, int, float, float]:
     in_process = len(datagrams) / (time.perf_counter() - started)
 
     core = ListenerCore(track_map)
-    with ListenerRunner(core, input_address=("127.0.0.1", 0),
-                        obcu_address=("127.0.0.1", 9)) as runner:  # fmt: skip
+    with ListenerRunner(
+        core, input_address=("127.0.0.1", 0), obcu_address=("127.0.0.1", 9)
+    ) as runner:
         sender = multiprocessing.get_context("spawn").Process(
             target=_send_datagrams, args=(datagrams, runner.input_address)
         )
@@ -360,8 +365,9 @@ def bench_sfa(
     for column in ("line", "case", "figure", "value", "target", ""):
         table.add_column(column, justify="right" if column == "value" else "left")
     for row in rows:
-        table.add_row(row.line_id, row.case, escape(row.figure), f"{row.value:.3f}", row.target,
-                      _mark(row.ok))  # fmt: skip
+        table.add_row(
+            row.line_id, row.case, escape(row.figure), f"{row.value:.3f}", row.target, _mark(row.ok)
+        )
     console.print(table)
 
     fuzz = fuzz_listener(fuzz_count)
@@ -376,11 +382,19 @@ def bench_sfa(
     cost = Table(title="SFA cost")
     for column in ("figure", "value", "target", ""):
         cost.add_column(column, justify="right" if column == "value" else "left")
-    cost.add_row(escape("decode + filter per IMU packet, median [µs]"), f"{median_us:.1f}", "≤ 50",
-                 _mark(median_us <= 50.0))  # fmt: skip
+    cost.add_row(
+        escape("decode + filter per IMU packet, median [µs]"),
+        f"{median_us:.1f}",
+        "≤ 50",
+        _mark(median_us <= 50.0),
+    )
     cost.add_row(escape("decode + filter per IMU packet, p99 [µs]"), f"{p99_us:.1f}", "", "")
-    cost.add_row(escape("listener throughput over UDP [datagrams/s]"), f"{udp_rate:.0f}", "≥ 10000",
-                 _mark(udp_rate >= 10_000))  # fmt: skip
+    cost.add_row(
+        escape("listener throughput over UDP [datagrams/s]"),
+        f"{udp_rate:.0f}",
+        "≥ 10000",
+        _mark(udp_rate >= 10_000),
+    )
     cost.add_row("  datagrams sent / received", f"{sent} / {received}", "", "")
     cost.add_row(escape("listener core in-process [datagrams/s]"), f"{core_rate:.0f}", "", "")
     console.print(cost)

@@ -154,10 +154,14 @@ def _table(results: dict[str, dict[str, dict[str, float]]]) -> Table:
             target = figures.get("target_median_us")
             verdict = "" if target is None else ("✓" if figures["median_us"] <= target else "✗")
             table.add_row(
-                "" if row else line_id, query, f"{figures['count']:.0f}",
-                f"{figures['median_us']:.2f}", f"{figures['p99_us']:.2f}",
-                f"{figures['max_us']:.1f}", "" if target is None else f"{verdict} ≤ {target:g}",
-            )  # fmt: skip
+                "" if row else line_id,
+                query,
+                f"{figures['count']:.0f}",
+                f"{figures['median_us']:.2f}",
+                f"{figures['p99_us']:.2f}",
+                f"{figures['max_us']:.1f}",
+                "" if target is None else f"{verdict} ≤ {target:g}",
+            )
     return table
 
 

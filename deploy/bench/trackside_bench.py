@@ -41,8 +41,13 @@ REST_P99_TARGET_MS = 50.0
 LIVE_P99_TARGET_MS = 100.0
 STATUS_PERIOD_S = 0.2
 ADMIN = ("bench-admin", "bench-password")
-KINDS = ("GET /vehicles", "GET /vehicles/{id}", "GET …/telemetry", "GET …/events",
-         "POST …/rd-target-speed")  # fmt: skip
+KINDS = (
+    "GET /vehicles",
+    "GET /vehicles/{id}",
+    "GET …/telemetry",
+    "GET …/events",
+    "POST …/rd-target-speed",
+)
 
 
 @dataclass(frozen=True)
@@ -61,10 +66,18 @@ def _vehicle_id(index: int) -> str:
 
 def _report(vehicle: str, seq: int) -> m.StatusReport:
     return m.StatusReport(
-        vehicle_id=vehicle, seq=seq, sim_time_s=time.time(), line_id="bologna-ring",
-        position_m=float(seq), speed_mps=10.0, acceleration_mps2=0.0, traction_force_n=1000.0,
-        ato_state=m.AtoState.ENGAGED, etcs_mode=m.EtcsMode.FS, sc_state=m.ScState.AD,
-    )  # fmt: skip
+        vehicle_id=vehicle,
+        seq=seq,
+        sim_time_s=time.time(),
+        line_id="bologna-ring",
+        position_m=float(seq),
+        speed_mps=10.0,
+        acceleration_mps2=0.0,
+        traction_force_n=1000.0,
+        ato_state=m.AtoState.ENGAGED,
+        etcs_mode=m.EtcsMode.FS,
+        sc_state=m.ScState.AD,
+    )
 
 
 def fleet_process(endpoint: str, vehicles: int, seconds: float, ready: Any) -> None:
@@ -75,8 +88,12 @@ def fleet_process(endpoint: str, vehicles: int, seconds: float, ready: Any) -> N
         publishers = [TypedPublisher(session, STATUS, vehicle=v) for v in ids]
 
         def answer(_chunks: dict[str, str], command: m.Command) -> m.CommandAck:
-            return m.CommandAck(vehicle_id=command.vehicle_id, command_id=command.command_id,
-                                accepted=True, sim_time_s=time.time())  # fmt: skip
+            return m.CommandAck(
+                vehicle_id=command.vehicle_id,
+                command_id=command.command_id,
+                accepted=True,
+                sim_time_s=time.time(),
+            )
 
         commands = TypedQueryable(session, COMMAND, answer)
         ready.set()
@@ -102,14 +119,23 @@ def _percentiles(samples: list[float]) -> dict[str, float]:
         return {"p50": float("nan"), "p99": float("nan"), "max": float("nan"), "n": 0.0}
     ordered = sorted(samples)
     p99 = ordered[min(len(ordered) - 1, round(0.99 * (len(ordered) - 1)))]
-    return {"p50": statistics.median(ordered), "p99": p99, "max": ordered[-1],
-            "n": float(len(ordered))}  # fmt: skip
+    return {
+        "p50": statistics.median(ordered),
+        "p99": p99,
+        "max": ordered[-1],
+        "n": float(len(ordered)),
+    }
 
 
 def _rest_worker(
-    base_url: str, headers: dict[str, str], vehicles: int, rate_hz: float, seconds: float,
-    worker: int, out: list[tuple[float, int, str]],
-) -> None:  # fmt: skip
+    base_url: str,
+    headers: dict[str, str],
+    vehicles: int,
+    rate_hz: float,
+    seconds: float,
+    worker: int,
+    out: list[tuple[float, int, str]],
+) -> None:
     import httpx
 
     with httpx.Client(base_url=base_url, headers=headers, timeout=10.0) as client:
@@ -130,8 +156,9 @@ def _rest_worker(
             elif kind == 3:
                 response = client.get(f"/api/v1/vehicles/{vehicle}/events?limit=50")
             else:
-                response = client.post(f"/api/v1/vehicles/{vehicle}/rd-target-speed",
-                                       json={"target_speed_kmh": 30.0})  # fmt: skip
+                response = client.post(
+                    f"/api/v1/vehicles/{vehicle}/rd-target-speed", json={"target_speed_kmh": 30.0}
+                )
             out.append((time.perf_counter() - sent, response.status_code, KINDS[kind]))
             count += 1
 
@@ -168,32 +195,46 @@ def load_process(
     live: list[list[float]] = [[] for _ in range(sockets)]
     ws_base = base_url.replace("http://", "ws://")
     threads = [
-        threading.Thread(target=_rest_worker, args=(
-            base_url, headers, vehicles, rate_hz / workers, seconds, worker, rest[worker]))
+        threading.Thread(
+            target=_rest_worker,
+            args=(base_url, headers, vehicles, rate_hz / workers, seconds, worker, rest[worker]),
+        )
         for worker in range(workers)
     ] + [
-        threading.Thread(target=_live_client, args=(
-            f"{ws_base}/api/v1/ws/vehicles/{_vehicle_id(index * vehicles // max(1, sockets))}"
-            f"?token={token}", seconds, live[index]))
+        threading.Thread(
+            target=_live_client,
+            args=(
+                f"{ws_base}/api/v1/ws/vehicles/{_vehicle_id(index * vehicles // max(1, sockets))}"
+                f"?token={token}",
+                seconds,
+                live[index],
+            ),
+        )
         for index in range(sockets)
-    ]  # fmt: skip
+    ]
     for thread in threads:
         thread.start()
     for thread in threads:
         thread.join()
     samples = [sample for part in rest for sample in part]
-    results.put({
-        "rest": [duration for duration, _, _ in samples],
-        "by_kind": {kind: [d for d, _, k in samples if k == kind] for kind in KINDS},
-        "errors": sum(1 for _, code, _ in samples if code >= 400),
-        "live": [latency for part in live for latency in part],
-    })  # fmt: skip
+    results.put(
+        {
+            "rest": [duration for duration, _, _ in samples],
+            "by_kind": {kind: [d for d, _, k in samples if k == kind] for kind in KINDS},
+            "errors": sum(1 for _, code, _ in samples if code >= 400),
+            "live": [latency for part in live for latency in part],
+        }
+    )
 
 
 def run_bench(
-    *, vehicles: int = 100, seconds: float = 20.0, rate_hz: float = 100.0, sockets: int = 10,
+    *,
+    vehicles: int = 100,
+    seconds: float = 20.0,
+    rate_hz: float = 100.0,
+    sockets: int = 10,
     warmup_s: float = 3.0,
-) -> BenchFigures:  # fmt: skip
+) -> BenchFigures:
     """Run the three processes and return the figures [ms]."""
     import uvicorn
 
@@ -202,8 +243,12 @@ def run_bench(
 
     endpoint = loopback_endpoint()
     stop, router_ready = threading.Event(), threading.Event()
-    router = threading.Thread(target=run_router, args=(stop,), daemon=True,
-                              kwargs={"listen": [endpoint], "ready": router_ready})  # fmt: skip
+    router = threading.Thread(
+        target=run_router,
+        args=(stop,),
+        daemon=True,
+        kwargs={"listen": [endpoint], "ready": router_ready},
+    )
     router.start()
     if not router_ready.wait(10.0):
         raise RuntimeError("the Zenoh router did not start")
@@ -211,25 +256,30 @@ def run_bench(
     with tempfile.TemporaryDirectory() as scratch:
         port = free_tcp_port()
         settings = Settings(
-            database_url=f"sqlite:///{Path(scratch) / 'bench.db'}", zenoh_connect=(endpoint,),
-            admin_user=ADMIN[0], admin_password=ADMIN[1], seed_lines=False,
-        )  # fmt: skip
-        server = uvicorn.Server(uvicorn.Config(create_app(settings), host="127.0.0.1",
-                                               port=port, log_level="warning"))  # fmt: skip
+            database_url=f"sqlite:///{Path(scratch) / 'bench.db'}",
+            zenoh_connect=(endpoint,),
+            admin_user=ADMIN[0],
+            admin_password=ADMIN[1],
+            seed_lines=False,
+        )
+        server = uvicorn.Server(
+            uvicorn.Config(create_app(settings), host="127.0.0.1", port=port, log_level="warning")
+        )
         serving = threading.Thread(target=server.run, daemon=True)
         serving.start()
         while not server.started:
             stop.wait(0.05)
         fleet_ready = spawn.Event()
         fleet_s = seconds + warmup_s + 5.0
-        fleet = spawn.Process(target=fleet_process,
-                              args=(endpoint, vehicles, fleet_s, fleet_ready))  # fmt: skip
+        fleet = spawn.Process(target=fleet_process, args=(endpoint, vehicles, fleet_s, fleet_ready))
         fleet.start()
         fleet_ready.wait(30.0)
         stop.wait(warmup_s)  # every vehicle seen alive and reporting
         results = spawn.Queue()
-        load = spawn.Process(target=load_process, args=(
-            f"http://127.0.0.1:{port}", vehicles, rate_hz, seconds, sockets, results))  # fmt: skip
+        load = spawn.Process(
+            target=load_process,
+            args=(f"http://127.0.0.1:{port}", vehicles, rate_hz, seconds, sockets, results),
+        )
         load.start()
         figures = results.get(timeout=seconds + 120.0)
         load.join(10.0)
@@ -245,9 +295,14 @@ def run_bench(
         kind: _percentiles([value * 1e3 for value in values])
         for kind, values in figures["by_kind"].items()
     }
-    return BenchFigures(rest_ms=rest, live_ms=live, requests=len(figures["rest"]),
-                        frames=len(figures["live"]), rest_errors=figures["errors"],
-                        rest_by_kind_ms=by_kind)  # fmt: skip
+    return BenchFigures(
+        rest_ms=rest,
+        live_ms=live,
+        requests=len(figures["rest"]),
+        frames=len(figures["live"]),
+        rest_errors=figures["errors"],
+        rest_by_kind_ms=by_kind,
+    )
 
 
 def bench_trackside(*, vehicles: int, seconds: float, rate_hz: float, sockets: int) -> BenchFigures:
@@ -262,12 +317,20 @@ def bench_trackside(*, vehicles: int, seconds: float, rate_hz: float, sockets: i
     for column in ("measure", "n", "p50 [ms]", "p99 [ms]", "max [ms]", "target p99 [ms]"):
         table.add_column(column, justify="left" if column == "measure" else "right")
     rows = [("REST request → response", figures.rest_ms, REST_P99_TARGET_MS)]
-    rows += [(f"  {kind}", values, REST_P99_TARGET_MS)
-             for kind, values in figures.rest_by_kind_ms.items()]  # fmt: skip
+    rows += [
+        (f"  {kind}", values, REST_P99_TARGET_MS)
+        for kind, values in figures.rest_by_kind_ms.items()
+    ]
     rows.append(("status → browser (WebSocket)", figures.live_ms, LIVE_P99_TARGET_MS))
     for name, values, target in rows:
-        table.add_row(name, f"{values['n']:.0f}", f"{values['p50']:.1f}", f"{values['p99']:.1f}",
-                      f"{values['max']:.1f}", f"≤ {target:.0f}")  # fmt: skip
+        table.add_row(
+            name,
+            f"{values['n']:.0f}",
+            f"{values['p50']:.1f}",
+            f"{values['p99']:.1f}",
+            f"{values['max']:.1f}",
+            f"≤ {target:.0f}",
+        )
     console.print(table)
     console.print(f"REST answers ≥ 400: {figures.rest_errors}")
     return figures

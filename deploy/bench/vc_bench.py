@@ -140,18 +140,23 @@ def bench_vc(
         lockstep_s = execution_runs * DEADLINE_S
         timings, _, wall_s = _run(SimClock(), lockstep_s)
         results["lockstep"] = timings
-        title = (f"VC execution time in lockstep: {lockstep_s:g} s simulated in {wall_s:.1f} s "
-                 f"wall (Python, this machine; the seeds' WCET A/B/C: 20/24/31 µs)")  # fmt: skip
+        title = (
+            f"VC execution time in lockstep: {lockstep_s:g} s simulated in {wall_s:.1f} s "
+            f"wall (Python, this machine; the seeds' WCET A/B/C: 20/24/31 µs)"
+        )
         console.print(_table(title, timings, lateness=False))
     for spin_us in spins_us:
         clock = RealTimeClock(1.0, spin_s=spin_us / 1e6)
         timings, vc, wall_s = _run(clock, seconds)
         results[f"real time, spin {spin_us:g} µs"] = timings
         how = "sleeping until each release" if spin_us == 0 else f"polling the last {spin_us:g} µs"
-        title = (f"VC in real time, {how}: {seconds:g} s simulated, {wall_s:.1f} s wall; "
-                 f"deadline {DEADLINE_S * 1e3:g} ms")  # fmt: skip
+        title = (
+            f"VC in real time, {how}: {seconds:g} s simulated, {wall_s:.1f} s wall; "
+            f"deadline {DEADLINE_S * 1e3:g} ms"
+        )
         console.print(_table(title, timings, lateness=True))
         outputs = vc.outputs
-        console.print(f"EB commanded at the end: {outputs.eb_commanded}; "
-                      f"System Decay: {outputs.system_decay}")  # fmt: skip
+        console.print(
+            f"EB commanded at the end: {outputs.eb_commanded}; System Decay: {outputs.system_decay}"
+        )
     return results

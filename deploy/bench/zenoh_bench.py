@@ -86,9 +86,11 @@ def _onboard_in_process(settings: ZenohSettings) -> Iterator[None]:
     track_map = TrackMap(load_seed_line("bologna-ring"))
     with open_session(settings) as session:
         node = OnboardNode(
-            OnboardSettings(vehicle_id=VEHICLE), session=session, clock=SimClock(),
+            OnboardSettings(vehicle_id=VEHICLE),
+            session=session,
+            clock=SimClock(),
             track_map=track_map,
-        )  # fmt: skip
+        )
         try:
             yield
         finally:
@@ -97,18 +99,23 @@ def _onboard_in_process(settings: ZenohSettings) -> Iterator[None]:
 
 def _in_process_peer(count: int, warmup: int) -> list[float]:
     endpoint = loopback_endpoint()
-    with open_session(ZenohSettings(mode="peer", connect=(), listen=(endpoint,))) as trackside:
-        with _onboard_in_process(ZenohSettings(mode="peer", connect=(endpoint,))):
-            _wait_alive(trackside, 5.0)
-            return measure_round_trips(trackside, count=count, warmup=warmup)
+    with (
+        open_session(ZenohSettings(mode="peer", connect=(), listen=(endpoint,))) as trackside,
+        _onboard_in_process(ZenohSettings(mode="peer", connect=(endpoint,))),
+    ):
+        _wait_alive(trackside, 5.0)
+        return measure_round_trips(trackside, count=count, warmup=warmup)
 
 
 def _in_process_router(count: int, warmup: int) -> list[float]:
     endpoint = loopback_endpoint()
-    with _router(endpoint), open_session(ZenohSettings(connect=(endpoint,))) as trackside:
-        with _onboard_in_process(ZenohSettings(connect=(endpoint,))):
-            _wait_alive(trackside, 5.0)
-            return measure_round_trips(trackside, count=count, warmup=warmup)
+    with (
+        _router(endpoint),
+        open_session(ZenohSettings(connect=(endpoint,))) as trackside,
+        _onboard_in_process(ZenohSettings(connect=(endpoint,))),
+    ):
+        _wait_alive(trackside, 5.0)
+        return measure_round_trips(trackside, count=count, warmup=warmup)
 
 
 def _across_processes(count: int, warmup: int) -> list[float]:
@@ -151,9 +158,12 @@ def bench_zenoh(*, count: int, warmup: int) -> dict[str, dict[str, float]]:
         table.add_column(column, justify="left" if column == "case" else "right")
     for name, figures in results.items():
         table.add_row(
-            name, f"{figures['count']:.0f}", f"{figures['median_ms']:.3f}",
-            f"{figures['p99_ms']:.3f}", f"{figures['max_ms']:.3f}",
-        )  # fmt: skip
+            name,
+            f"{figures['count']:.0f}",
+            f"{figures['median_ms']:.3f}",
+            f"{figures['p99_ms']:.3f}",
+            f"{figures['max_ms']:.3f}",
+        )
     console.print(table)
     console.print("target: p99 ≤ 2 ms in-process")
     return results

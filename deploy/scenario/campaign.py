@@ -46,15 +46,33 @@ __all__ = [
     "summarise",
 ]
 
-FAULT_SCENARIOS = ("ma-shortened", "obstacle", "vigilance-absent", "ato-failure",
-                   "tsr", "trackside-restart", "zenoh-link-loss", "gps-outage",
-                   "odometer-failure", "udp-loss", "wheel-slip", "slide-at-stop",
-                   "odometer-drift", "balise-missed")  # fmt: skip
+FAULT_SCENARIOS = (
+    "ma-shortened",
+    "obstacle",
+    "vigilance-absent",
+    "ato-failure",
+    "tsr",
+    "trackside-restart",
+    "zenoh-link-loss",
+    "gps-outage",
+    "odometer-failure",
+    "udp-loss",
+    "wheel-slip",
+    "slide-at-stop",
+    "odometer-drift",
+    "balise-missed",
+)
 """The whole-stack fault scenarios: the campaign's default matrix."""
 STOP_KPIS = ("stop_error_m", "arrival_error_s")
 """Per stop: their absolute values over every stop of a scenario's runs are distributed."""
-HEADLINE_KPIS = ("max_overspeed_kmh", "ad_speed_rms_kmh", "position_error_m.rms",
-                 "min_eoa_margin_m", "traction_energy_kwh", "real_time_factor")  # fmt: skip
+HEADLINE_KPIS = (
+    "max_overspeed_kmh",
+    "ad_speed_rms_kmh",
+    "position_error_m.rms",
+    "min_eoa_margin_m",
+    "traction_energy_kwh",
+    "real_time_factor",
+)
 
 
 @dataclass(frozen=True)
@@ -173,8 +191,9 @@ def matrix(
         tuple(zip((v.path for v in variations), combination, strict=True))
         for combination in itertools.product(*(v.values for v in variations))
     ]
-    return [Cell(name, seed, setting)
-            for name in scenarios for seed in seeds for setting in settings]  # fmt: skip
+    return [
+        Cell(name, seed, setting) for name in scenarios for seed in seeds for setting in settings
+    ]
 
 
 RUNS_PER_WORKER = 4
@@ -270,11 +289,7 @@ def summarise(results: Sequence[CellResult]) -> dict[str, Any]:
             "unsafe": sum(1 for r in ran if r.unsafe),
             "kpis": {
                 path: distribution(
-                    [
-                        v
-                        for r in ran
-                        if r.kpis is not None and (v := _kpi(r.kpis, path)) is not None
-                    ]  # fmt: skip
+                    [v for r in ran if r.kpis is not None and (v := _kpi(r.kpis, path)) is not None]
                 )
                 for path in HEADLINE_KPIS
             }
@@ -293,18 +308,21 @@ def summarise(results: Sequence[CellResult]) -> dict[str, Any]:
         "scenarios": scenarios,
         "cells": [
             {
-                "label": r.cell.label, "scenario": r.cell.scenario, "seed": r.cell.seed,
+                "label": r.cell.label,
+                "scenario": r.cell.scenario,
+                "seed": r.cell.seed,
                 "setting": dict(r.cell.setting),
                 "passed": None if r.kpis is None else r.kpis["passed"],
-                "unsafe": r.unsafe, "error": r.error,
-                "failed_expectations": [] if r.kpis is None else [
-                    e["name"] for e in r.kpis["expectations"] if not e["ok"]
-                ],
+                "unsafe": r.unsafe,
+                "error": r.error,
+                "failed_expectations": []
+                if r.kpis is None
+                else [e["name"] for e in r.kpis["expectations"] if not e["ok"]],
                 "stops": {key: _stop_values(r.kpis, key) for key in STOP_KPIS},
             }
             for r in results
         ],
-    }  # fmt: skip
+    }
 
 
 def write_summary(summary: dict[str, Any], path: Path) -> None:

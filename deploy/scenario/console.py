@@ -30,15 +30,19 @@ def run_from_cli(
         return 2
     options = RunOptions(fast=fast, speed=speed, seed=seed, report_dir=report)
     columns = (
-        TextColumn("[bold]{task.description}"), BarColumn(),
-        TextColumn("{task.fields[sim]}"), TimeElapsedColumn(),
-    )  # fmt: skip
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        TextColumn("{task.fields[sim]}"),
+        TimeElapsedColumn(),
+    )
     with Progress(*columns, console=console, transient=True) as bar:
         task = bar.add_task(spec.name, total=spec.duration_s, sim="")
 
         def show(frame: RunProgress) -> None:
-            text = (f"t={frame.sim_time_s:7.1f} s  v={frame.speed_kmh:5.1f} km/h  ETCS "
-                    f"{frame.etcs_mode}  ATO {frame.ato_state}  SC {frame.sc_state}")  # fmt: skip
+            text = (
+                f"t={frame.sim_time_s:7.1f} s  v={frame.speed_kmh:5.1f} km/h  ETCS "
+                f"{frame.etcs_mode}  ATO {frame.ato_state}  SC {frame.sc_state}"
+            )
             bar.update(task, completed=frame.sim_time_s, sim=text)
 
         try:
@@ -63,9 +67,11 @@ def _format(value: Any) -> str:
 
 def _breakdown_text(breakdown: dict[str, Any], shown: int = 5) -> str:
     """The stepping's wall time and its largest tasks, e.g. ``lockstep 70.1 s: sfa 26 %, …``."""
-    tasks = [f"{name} {100 * item['share']:.0f} %"
-             for name, item in list(breakdown["tasks"].items())[:shown]
-             if item["share"] is not None]  # fmt: skip
+    tasks = [
+        f"{name} {100 * item['share']:.0f} %"
+        for name, item in list(breakdown["tasks"].items())[:shown]
+        if item["share"] is not None
+    ]
     text = f"lockstep {breakdown['lockstep_s']:.1f} s: " + ", ".join(tasks)
     if "outside_lockstep_s" in breakdown:
         text += f"; outside it {breakdown['outside_lockstep_s']:.1f} s"
@@ -78,21 +84,37 @@ def summary_table(outcome: RunOutcome) -> Table:
     table = Table(title=f"{kpis['scenario']}: {'PASSED' if outcome.passed else 'FAILED'}")
     table.add_column("KPI / expectation")
     table.add_column("value")
-    for key in ("seed", "sim_time_s", "wall_time_s", "real_time_factor", "max_overspeed_kmh",
-                "etcs_sb_count", "etcs_eb_count", "vc_eb_count", "system_decay",
-                "traction_energy_kwh", "ad_speed_rms_kmh", "position_error_m", "nmpc_ms",
-                "vc_outcome"):  # fmt: skip
+    for key in (
+        "seed",
+        "sim_time_s",
+        "wall_time_s",
+        "real_time_factor",
+        "max_overspeed_kmh",
+        "etcs_sb_count",
+        "etcs_eb_count",
+        "vc_eb_count",
+        "system_decay",
+        "traction_energy_kwh",
+        "ad_speed_rms_kmh",
+        "position_error_m",
+        "nmpc_ms",
+        "vc_outcome",
+    ):
         if key in kpis:
             table.add_row(key, _format(kpis[key]))
     breakdown = kpis.get("wall_time_breakdown")
     if breakdown is not None:
         table.add_row("wall time by task", _breakdown_text(breakdown))
     for stop in kpis["stops"]:
-        table.add_row(f"stop {stop['name']}", f"arrival {stop['arrival_error_s']:+.2f} s, "
-                      f"position {stop['stop_error_m']:+.3f} m")  # fmt: skip
+        table.add_row(
+            f"stop {stop['name']}",
+            f"arrival {stop['arrival_error_s']:+.2f} s, position {stop['stop_error_m']:+.3f} m",
+        )
     for item in kpis["vc_interventions"]:
-        timing = (f"hazard→command {item['hazard_to_eb_command_ms']} ms, "
-                  f"hazard→full EB {item['total_to_full_eb_ms']} ms")  # fmt: skip
+        timing = (
+            f"hazard→command {item['hazard_to_eb_command_ms']} ms, "
+            f"hazard→full EB {item['total_to_full_eb_ms']} ms"
+        )
         table.add_row(f"VC EB ({item['cause']})", timing)
     for item in kpis["expectations"]:
         mark = "[green]ok[/green]" if item["ok"] else "[red]FAIL[/red]"
@@ -106,24 +128,38 @@ def _campaign_progress(
 ) -> Iterator[tuple[Progress, Callable[[Any], None]]]:
     """A campaign's progress bar, and the callback that prints one line a run as it ends, so
     that a long campaign can be followed in a log."""
-    with Progress(TextColumn("[bold]campaign"), BarColumn(), TextColumn("{task.completed}/"
-                  "{task.total}"), TimeElapsedColumn(), console=console) as bar:  # fmt: skip
+    with Progress(
+        TextColumn("[bold]campaign"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeElapsedColumn(),
+        console=console,
+    ) as bar:
         task = bar.add_task("campaign", total=total)
         done = [0]
 
         def finished(result: Any) -> None:
             done[0] += 1
-            bar.console.print(f"[{done[0]}/{total}] {_result_line(result)}",
-                              markup=False, highlight=False, soft_wrap=True)  # fmt: skip
+            bar.console.print(
+                f"[{done[0]}/{total}] {_result_line(result)}",
+                markup=False,
+                highlight=False,
+                soft_wrap=True,
+            )
             bar.advance(task)
 
         yield bar, finished
 
 
 def campaign_from_cli(
-    scenarios: list[str], *, seeds: int, first_seed: int, workers: int, vary: list[str],
+    scenarios: list[str],
+    *,
+    seeds: int,
+    first_seed: int,
+    workers: int,
+    vary: list[str],
     json_path: Path | None,
-) -> int:  # fmt: skip
+) -> int:
     """Run the matrix and print the summary; 0 unless a run crashed or ended unsafe."""
     from deploy.scenario.campaign import (
         FAULT_SCENARIOS,
@@ -148,11 +184,22 @@ def campaign_from_cli(
     with _campaign_progress(console, len(cells)) as (_bar, finished):
         results = run_campaign(cells, workers=workers, on_result=finished)
     summary = summarise(results)
-    table = Table(title=f"campaign: {summary['runs']} runs, {summary['crashed']} crashed, "
-                  f"{summary['unsafe']} unsafe")  # fmt: skip
-    for column in ("scenario", "runs", "passed", "failed", "crashed", "unsafe",
-                   "max overspeed [km/h]", "min EoA margin [m]", "|stop error| [m]",
-                   "RTF median"):  # fmt: skip
+    table = Table(
+        title=f"campaign: {summary['runs']} runs, {summary['crashed']} crashed, "
+        f"{summary['unsafe']} unsafe"
+    )
+    for column in (
+        "scenario",
+        "runs",
+        "passed",
+        "failed",
+        "crashed",
+        "unsafe",
+        "max overspeed [km/h]",
+        "min EoA margin [m]",
+        "|stop error| [m]",
+        "RTF median",
+    ):
         table.add_column(column)
     for name, row in summary["scenarios"].items():
         kpis = row["kpis"]
@@ -161,12 +208,18 @@ def campaign_from_cli(
             value = kpis.get(key)
             return "—" if value is None else f"{value[which]:.2f}"
 
-        table.add_row(name, str(row["runs"]), str(row["passed"]), str(row["failed"]),
-                      str(row["crashed"]), str(row["unsafe"]),
-                      stat("max_overspeed_kmh", "max"), _min_margin(results, name),
-                      " / ".join(stat("stops.stop_error_m.abs", which)
-                                 for which in ("median", "p99", "max")),
-                      stat("real_time_factor", "median"))  # fmt: skip
+        table.add_row(
+            name,
+            str(row["runs"]),
+            str(row["passed"]),
+            str(row["failed"]),
+            str(row["crashed"]),
+            str(row["unsafe"]),
+            stat("max_overspeed_kmh", "max"),
+            _min_margin(results, name),
+            " / ".join(stat("stops.stop_error_m.abs", which) for which in ("median", "p99", "max")),
+            stat("real_time_factor", "median"),
+        )
     Console().print(table)
     for cell in summary["cells"]:
         if cell["error"] or cell["unsafe"] or cell["failed_expectations"]:
@@ -192,15 +245,26 @@ def _result_line(result: Any) -> str:
 
 
 def _min_margin(results: list[Any], name: str) -> str:
-    margins = [r.kpis["min_eoa_margin_m"] for r in results if r.cell.scenario == name
-               and r.kpis is not None and r.kpis.get("min_eoa_margin_m") is not None]  # fmt: skip
+    margins = [
+        r.kpis["min_eoa_margin_m"]
+        for r in results
+        if r.cell.scenario == name
+        and r.kpis is not None
+        and r.kpis.get("min_eoa_margin_m") is not None
+    ]
     return f"{min(margins):.2f}" if margins else "—"
 
 
 def generated_campaign_from_cli(
-    count: int, *, seed: int, space_path: Path | None, out_dir: Path | None, workers: int,
-    shrink_runs: int, json_path: Path | None,
-) -> int:  # fmt: skip
+    count: int,
+    *,
+    seed: int,
+    space_path: Path | None,
+    out_dir: Path | None,
+    workers: int,
+    shrink_runs: int,
+    json_path: Path | None,
+) -> int:
     """Generate, run, judge, shrink and print; 0 when no invariant is violated, 1 otherwise,
     2 when the space cannot be used."""
     from deploy.scenario.generate import default_out_dir
@@ -217,10 +281,15 @@ def generated_campaign_from_cli(
     console.print(f"generating {count} scenarios (space {space.name}, seed {seed}) into {out}/")
     with _campaign_progress(console, count) as (bar, finished):
         campaign = run_generated(
-            space, count=count, seed=seed, out_dir=out, workers=workers,
-            shrink_runs=shrink_runs, on_result=finished,
+            space,
+            count=count,
+            seed=seed,
+            out_dir=out,
+            workers=workers,
+            shrink_runs=shrink_runs,
+            on_result=finished,
             on_shrink=lambda text: bar.console.print(text, markup=False, highlight=False),
-        )  # fmt: skip
+        )
     summary = summarise_generated(campaign, seed=seed, space=space.name)
     _print_generated(summary)
     if json_path is not None:
@@ -233,15 +302,21 @@ def generated_campaign_from_cli(
 
 def _print_generated(summary: dict[str, Any]) -> None:
     out = Console()
-    failures = Table(title=f"generated: {summary['runs']} runs, {summary['violations']} with an "
-                     "invariant violated")  # fmt: skip
+    failures = Table(
+        title=f"generated: {summary['runs']} runs, {summary['violations']} with an "
+        "invariant violated"
+    )
     for column in ("invariant", "runs violating", "first", "shrunk (runs: steps)"):
         failures.add_column(column)
     for name, entry in summary["invariants"].items():
         shrunk = entry["shrunk"]
-        text = "—" if shrunk is None else (
-            f"{shrunk['file']} ({shrunk['runs']}: {'; '.join(shrunk['steps']) or 'none kept'})"
-        )  # fmt: skip
+        text = (
+            "—"
+            if shrunk is None
+            else (
+                f"{shrunk['file']} ({shrunk['runs']}: {'; '.join(shrunk['steps']) or 'none kept'})"
+            )
+        )
         failures.add_row(name, str(entry["count"]), Path(entry["first"]).stem, text)
     out.print(failures)
     kpis = Table(title="KPI distributions (over every stop, or every run)")
@@ -255,5 +330,8 @@ def _print_generated(summary: dict[str, Any]) -> None:
     out.print(kpis)
     for cell in summary["cells"]:
         for violation in cell["violations"]:
-            out.print(f"  {Path(cell['scenario']).stem}: {violation['invariant']}: "
-                      f"{violation['detail']}", markup=False, highlight=False)  # fmt: skip
+            out.print(
+                f"  {Path(cell['scenario']).stem}: {violation['invariant']}: {violation['detail']}",
+                markup=False,
+                highlight=False,
+            )

@@ -165,8 +165,11 @@ def _choice(rng: np.random.Generator, weights: Mapping[Any, float]) -> str:
 
 def _journey_start_m(track_map: TrackMap, start_m: float) -> float:
     """Where the preamble stops: past the first balise group with an MA ahead of ``start_m``."""
-    groups = [g.position_m for g in track_map.line.balise_groups
-              if any(p.type == "movement_authority" for p in g.packets)]  # fmt: skip
+    groups = [
+        g.position_m
+        for g in track_map.line.balise_groups
+        if any(p.type == "movement_authority" for p in g.packets)
+    ]
     if not groups:
         return start_m
     ahead = min(groups, key=lambda g: _forward(track_map, start_m, g))
@@ -179,8 +182,9 @@ def _forward(track_map: TrackMap, from_m: float, to_m: float) -> float:
     return to_m - from_m
 
 
-def _stops(rng: np.random.Generator, space: GeneratorSpace, track_map: TrackMap,
-           start_m: float, count: int) -> list[str]:  # fmt: skip
+def _stops(
+    rng: np.random.Generator, space: GeneratorSpace, track_map: TrackMap, start_m: float, count: int
+) -> list[str]:
     """The platforms the legs run to: each the next ahead, or with ``skip_platform`` the one
     after; the first at least a leg's margins ahead of the start."""
     points = sorted(track_map.line.stopping_points, key=lambda p: p.position_m)
@@ -206,21 +210,24 @@ def draw(space: GeneratorSpace, seed: int, index: int) -> Draw:
     start = float(space.start_position_m[int(rng.integers(len(space.start_position_m)))])
     cap = _uniform(rng, space.cap_kmh, 0)
     reaction = _uniform(rng, space.reaction_s, 1)
-    stops = _stops(rng, space, track_map, _journey_start_m(track_map, start),
-                   _integer(rng, space.legs))  # fmt: skip
+    stops = _stops(
+        rng, space, track_map, _journey_start_m(track_map, start), _integer(rng, space.legs)
+    )
     legs = tuple(
         LegDraw(stop, _uniform(rng, space.slack, 3), _uniform(rng, space.dwell_s, 0))
         for stop in stops
     )
     tsrs = tuple(
         TsrDraw(
-            leg=int(rng.integers(len(legs))), placement=_choice(rng, space.tsr.placement),
-            where=_uniform(rng, (0.0, 1.0), 3), length_m=_uniform(rng, space.tsr.length_m, 0),
+            leg=int(rng.integers(len(legs))),
+            placement=_choice(rng, space.tsr.placement),
+            where=_uniform(rng, (0.0, 1.0), 3),
+            length_m=_uniform(rng, space.tsr.length_m, 0),
             speed_kmh=5.0 * round(_uniform(rng, space.tsr.speed_kmh, 1) / 5.0),
             lead_m=_uniform(rng, space.tsr.braking_point_margin_m, 0),
         )
         for _ in range(_integer(rng, space.tsr.count))
-    )  # fmt: skip
+    )
     ma_legs = rng.permutation(len(legs))[: _integer(rng, space.ma.count)]
     mas = []
     for leg in sorted(int(k) for k in ma_legs):
@@ -248,8 +255,10 @@ def _draw_faults(rng: np.random.Generator, space: GeneratorSpace, base: Draw) ->
             mode = ("silent", "stuck_zero")[int(rng.integers(2))]
             faults.append(OdometerFailure(kind=name, mode=mode, **window))
         elif name == "udp_link":
-            rates = {key: _uniform(rng, kind.rate, 2)
-                     for key in ("loss", "reorder", "duplicate", "corrupt")}  # fmt: skip
+            rates = {
+                key: _uniform(rng, kind.rate, 2)
+                for key in ("loss", "reorder", "duplicate", "corrupt")
+            }
             if not any(isinstance(f, UdpLinkFault) for f in faults):  # one per scenario
                 faults.append(UdpLinkFault(kind=name, **rates, **window))
         elif name == "zenoh_link_loss":
@@ -304,8 +313,11 @@ def _timing(space: GeneratorSpace, base: Draw) -> list[tuple[float, float]]:
 
 
 def _braking_m(speed_mps: float, to_mps: float) -> float:
-    return (speed_mps * REACTION_S + max(speed_mps**2 - to_mps**2, 0.0)
-            / (2.0 * LIMIT_DECELERATION_MPS2) + INTERVAL_MARGIN_M)  # fmt: skip
+    return (
+        speed_mps * REACTION_S
+        + max(speed_mps**2 - to_mps**2, 0.0) / (2.0 * LIMIT_DECELERATION_MPS2)
+        + INTERVAL_MARGIN_M
+    )
 
 
 def _in_leg(track_map: TrackMap, leg: _Leg, stop_tp: str, along_m: float) -> str:
@@ -318,8 +330,9 @@ def _in_leg(track_map: TrackMap, leg: _Leg, stop_tp: str, along_m: float) -> str
     return clause
 
 
-def _tsr_fault(track_map: TrackMap, legs: list[_Leg], tsr: TsrDraw,
-               tp: str) -> TemporarySpeedRestriction | None:  # fmt: skip
+def _tsr_fault(
+    track_map: TrackMap, legs: list[_Leg], tsr: TsrDraw, tp: str
+) -> TemporarySpeedRestriction | None:
     leg = legs[tsr.leg]
     speed = tsr.speed_kmh * MPS_PER_KMH
     room = leg.length_m - 2 * LEG_MARGIN_M
@@ -333,32 +346,47 @@ def _tsr_fault(track_map: TrackMap, legs: list[_Leg], tsr: TsrDraw,
     end = min(start + tsr.length_m, track_map.length_m)
     if end - start < 20.0:
         return None
-    return TemporarySpeedRestriction(kind="tsr", when=when, start_m=start, end_m=round(end, 1),
-                                     speed_kmh=tsr.speed_kmh)  # fmt: skip
+    return TemporarySpeedRestriction(
+        kind="tsr", when=when, start_m=start, end_m=round(end, 1), speed_kmh=tsr.speed_kmh
+    )
 
 
-def _ma_events(track_map: TrackMap, legs: list[_Leg], ma: MaDraw,
-               tps: list[str]) -> tuple[ShortenedAuthority, Action | None] | None:  # fmt: skip
+def _ma_events(
+    track_map: TrackMap, legs: list[_Leg], ma: MaDraw, tps: list[str]
+) -> tuple[ShortenedAuthority, Action | None] | None:
     """The shortening, and the RBC's new MA once the train stands at it (none after the last
     stop); None when the leg has no room for it."""
     leg = legs[ma.leg]
     eoa_along = leg.length_m + (ma.offset_m if ma.placement == "beyond" else -ma.offset_m)
     latest = eoa_along - _braking_m(leg.top_mps, 0.0)
     # After any group with an MA before the EoA: its packet 12 would replace the shortening.
-    earliest = max([LEG_MARGIN_M] + [a + 10.0 for g in track_map.line.balise_groups
-                   if 0.0 <= (a := _forward(track_map, leg.start_m, g.position_m)) < eoa_along
-                   and any(p.type == "movement_authority" for p in g.packets)])  # fmt: skip
+    earliest = max(
+        [LEG_MARGIN_M]
+        + [
+            a + 10.0
+            for g in track_map.line.balise_groups
+            if 0.0 <= (a := _forward(track_map, leg.start_m, g.position_m)) < eoa_along
+            and any(p.type == "movement_authority" for p in g.packets)
+        ]
+    )
     if latest <= earliest or eoa_along <= LEG_MARGIN_M:
         return None
     trigger = earliest + ma.where * (latest - earliest)
     eoa = round(track_map.normalise(leg.start_m + eoa_along), 1)
     # The SvL is supervised from the max-safe front end: the danger point covers the interval
     # there (5 m + 5 % from the last group, and the location accuracies).
-    behind = [d for g in track_map.line.balise_groups
-              if (d := _forward(track_map, g.position_m, eoa)) >= 0.0]  # fmt: skip
+    behind = [
+        d
+        for g in track_map.line.balise_groups
+        if (d := _forward(track_map, g.position_m, eoa)) >= 0.0
+    ]
     danger = max(SHORTENED_DANGER_POINT_M, float(math.ceil(10.0 + 0.05 * min(behind, default=eoa))))
-    fault = ShortenedAuthority(kind="ma_shortened", when=_in_leg(track_map, leg, tps[ma.leg],
-                               trigger), end_of_authority_m=eoa, danger_point_m=danger)  # fmt: skip
+    fault = ShortenedAuthority(
+        kind="ma_shortened",
+        when=_in_leg(track_map, leg, tps[ma.leg], trigger),
+        end_of_authority_m=eoa,
+        danger_point_m=danger,
+    )
     if ma.placement == "beyond" and ma.leg == len(legs) - 1:
         return fault, None
     near = round(0.1 * (eoa_along - trigger) + 60.0 + max(ma.offset_m, 0.0), 1)
@@ -367,9 +395,11 @@ def _ma_events(track_map: TrackMap, legs: list[_Leg], ma: MaDraw,
         # Once the train has closed up to the EoA (docs/decisions.md, "Closing up to an EoA").
         when = f"standstill and next_stop == {tps[ma.leg]} and eoa_distance_m < {CLOSED_UP_M}"
     behind_m = min(eoa_along, leg.length_m) - RESTORE_BEHIND_M  # behind the EoA short of the stop
-    restore = track_map.normalise(leg.start_m + behind_m) if track_map.line.ring else (
-        track_map.length_m - 1.0
-    )  # fmt: skip
+    restore = (
+        track_map.normalise(leg.start_m + behind_m)
+        if track_map.line.ring
+        else (track_map.length_m - 1.0)
+    )
     return fault, Action(do="issue_ma", when=when, end_of_authority_m=round(restore, 1))
 
 
@@ -390,10 +420,15 @@ def render(space: GeneratorSpace, base: Draw) -> ScenarioSpec:
     points = []
     for k, (leg, (arrival, departure)) in enumerate(zip(base.legs, times, strict=True)):
         last = k == len(base.legs) - 1
-        points.append(JourneyTimingPoint(
-            id=tps[k], stopping_point_id=leg.stop_id, arrival_time_s=arrival,
-            departure_time_s=None if last else departure, end_of_journey=last,
-        ))  # fmt: skip
+        points.append(
+            JourneyTimingPoint(
+                id=tps[k],
+                stopping_point_id=leg.stop_id,
+                arrival_time_s=arrival,
+                departure_time_s=None if last else departure,
+                end_of_journey=last,
+            )
+        )
     faults: list[Fault] = []
     for tsr in base.tsrs:
         fault = _tsr_fault(track_map, legs, tsr, tps[tsr.leg])
@@ -408,16 +443,25 @@ def render(space: GeneratorSpace, base: Draw) -> ScenarioSpec:
                 actions.append(events[1])
     faults.extend(base.faults)
     return ScenarioSpec(
-        name=base.name, title=_title(base), line=space.line, seed=base.run_seed,
+        name=base.name,
+        title=_title(base),
+        line=space.line,
+        seed=base.run_seed,
         duration_s=round(PREAMBLE_S + times[-1][0] + space.duration_margin_s, 0),
         end_when="journey_ended and standstill",
         vehicle=space.vehicle.model_copy(update={"start_position_m": base.start_position_m}),
-        operator=OperatorSpec(simulated=True, reaction_s=base.reaction_s,
-                              reengage=any(f.kind in FALLBACK_FAULTS for f in base.faults)),
-        journey=JourneySpec(id="generated", max_speed_kmh=base.cap_kmh,
-                            timing_points=tuple(points)),
-        actions=tuple(actions), faults=tuple(faults), invariants=space.invariants,
-    )  # fmt: skip
+        operator=OperatorSpec(
+            simulated=True,
+            reaction_s=base.reaction_s,
+            reengage=any(f.kind in FALLBACK_FAULTS for f in base.faults),
+        ),
+        journey=JourneySpec(
+            id="generated", max_speed_kmh=base.cap_kmh, timing_points=tuple(points)
+        ),
+        actions=tuple(actions),
+        faults=tuple(faults),
+        invariants=space.invariants,
+    )
 
 
 def _title(base: Draw) -> str:
@@ -432,8 +476,9 @@ def _title(base: Draw) -> str:
 
 
 def _comment(space: GeneratorSpace, base: Draw) -> str:
-    legs = ", ".join(f"{leg.stop_id} (slack {leg.slack:+.3f}, dwell {leg.dwell_s:g} s)"
-                     for leg in base.legs)  # fmt: skip
+    legs = ", ".join(
+        f"{leg.stop_id} (slack {leg.slack:+.3f}, dwell {leg.dwell_s:g} s)" for leg in base.legs
+    )
     lines = [
         f"Generated by `ato campaign --generate` from the space {space.name!r}: seed "
         f"{base.seed}, index {base.index}.",
@@ -443,12 +488,16 @@ def _comment(space: GeneratorSpace, base: Draw) -> str:
     track_map, geometry = _geometry(space, base)
     tps = [f"tp{k + 1}-{leg.stop_id}" for k, leg in enumerate(base.legs)]
     left_out = " (left out: no room for it in the leg)"
-    lines += [f"TSR in leg {t.leg + 1}: {t.placement}, {t.speed_kmh:g} km/h over {t.length_m:g} m"
-              + ("" if _tsr_fault(track_map, geometry, t, tps[t.leg]) else left_out)
-              for t in base.tsrs]  # fmt: skip
-    lines += [f"MA shortened in leg {a.leg + 1}: {a.offset_m:g} m {a.placement} the stop"
-              + ("" if _ma_events(track_map, geometry, a, tps) else left_out)
-              for a in base.mas]  # fmt: skip
+    lines += [
+        f"TSR in leg {t.leg + 1}: {t.placement}, {t.speed_kmh:g} km/h over {t.length_m:g} m"
+        + ("" if _tsr_fault(track_map, geometry, t, tps[t.leg]) else left_out)
+        for t in base.tsrs
+    ]
+    lines += [
+        f"MA shortened in leg {a.leg + 1}: {a.offset_m:g} m {a.placement} the stop"
+        + ("" if _ma_events(track_map, geometry, a, tps) else left_out)
+        for a in base.mas
+    ]
     lines.append("Re-run: ato run THIS_FILE --fast (the invariants are its expectations).")
     return "\n".join(lines)
 
@@ -457,8 +506,9 @@ def write_scenario(space: GeneratorSpace, base: Draw, out_dir: Path) -> Path:
     """The scenario file of a draw, ``<name>.toml`` in ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{base.name}.toml"
-    path.write_text(scenario_toml(render(space, base), comment=_comment(space, base)),
-                    encoding="utf-8")  # fmt: skip
+    path.write_text(
+        scenario_toml(render(space, base), comment=_comment(space, base)), encoding="utf-8"
+    )
     return path
 
 

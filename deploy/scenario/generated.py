@@ -28,8 +28,13 @@ from deploy.scenario.toml_out import scenario_toml
 
 __all__ = ["GeneratedCampaign", "kpi_distributions", "run_generated", "summarise_generated"]
 
-DISTRIBUTIONS = ("stop_error_m.abs", "arrival_error_s.abs", "nmpc_ms.p99", "nmpc_ms.max",
-                 "traction_energy_kwh")  # fmt: skip
+DISTRIBUTIONS = (
+    "stop_error_m.abs",
+    "arrival_error_s.abs",
+    "nmpc_ms.p99",
+    "nmpc_ms.max",
+    "traction_energy_kwh",
+)
 """The KPI distributions of the summary: per stop for the first two, per run for the rest."""
 
 
@@ -56,10 +61,16 @@ def run_spec_in_worker(spec: ScenarioSpec, directory: Path) -> CellResult:
 
 
 def run_generated(
-    space: GeneratorSpace, *, count: int, seed: int, out_dir: Path, workers: int,
-    shrink_runs: int = 12, on_result: Callable[[CellResult], None] | None = None,
+    space: GeneratorSpace,
+    *,
+    count: int,
+    seed: int,
+    out_dir: Path,
+    workers: int,
+    shrink_runs: int = 12,
+    on_result: Callable[[CellResult], None] | None = None,
     on_shrink: Callable[[str], None] | None = None,
-) -> GeneratedCampaign:  # fmt: skip
+) -> GeneratedCampaign:
     """Generate, run, judge and shrink; every file is written under ``out_dir``."""
     drawn: dict[str, Draw] = {}
     specs: dict[str, ScenarioSpec] = {}
@@ -72,8 +83,9 @@ def run_generated(
     violations = {r.cell.scenario: _judged(specs[r.cell.scenario], r) for r in results}
     shrunk: dict[InvariantName, tuple[Path, ShrinkResult]] = {}
     for invariant in INVARIANTS:
-        failing = [path for path in specs if any(v.invariant == invariant
-                                                 for v in violations[path])]  # fmt: skip
+        failing = [
+            path for path in specs if any(v.invariant == invariant for v in violations[path])
+        ]
         first = failing[0] if failing else None
         if first is None or shrink_runs <= 0:
             continue
@@ -83,8 +95,9 @@ def run_generated(
         def run(spec: ScenarioSpec) -> list[Violation]:
             return _judged(spec, run_spec_in_worker(spec, out_dir / "shrink"))
 
-        result = shrink(space, drawn[first], invariant, run, max_runs=shrink_runs,
-                        violations=violations[first])  # fmt: skip
+        result = shrink(
+            space, drawn[first], invariant, run, max_runs=shrink_runs, violations=violations[first]
+        )
         target = write_scenario(space, result.draw, out_dir)
         shrunk[invariant] = (target, result)
     return GeneratedCampaign(results, specs, violations, shrunk)
@@ -93,8 +106,13 @@ def run_generated(
 def _values(results: Sequence[CellResult], key: str) -> list[float]:
     if key.endswith(".abs"):
         name = key.removesuffix(".abs")
-        return [abs(float(stop[name])) for r in results if r.kpis is not None
-                for stop in r.kpis.get("stops", []) if stop.get(name) is not None]  # fmt: skip
+        return [
+            abs(float(stop[name]))
+            for r in results
+            if r.kpis is not None
+            for stop in r.kpis.get("stops", [])
+            if stop.get(name) is not None
+        ]
     head, _, member = key.partition(".")
     found = []
     for r in results:
@@ -117,16 +135,22 @@ def summarise_generated(campaign: GeneratedCampaign, *, seed: int, space: str) -
     summary = summarise(campaign.results)
     by_invariant: dict[str, Any] = {}
     for invariant in INVARIANTS:
-        failing = [path for path, found in campaign.violations.items()
-                   if any(v.invariant == invariant for v in found)]  # fmt: skip
+        failing = [
+            path
+            for path, found in campaign.violations.items()
+            if any(v.invariant == invariant for v in found)
+        ]
         if not failing:
             continue
-        entry: dict[str, Any] = {"count": len(failing), "scenarios": failing,
-                                 "first": failing[0], "shrunk": None}  # fmt: skip
+        entry: dict[str, Any] = {
+            "count": len(failing),
+            "scenarios": failing,
+            "first": failing[0],
+            "shrunk": None,
+        }
         if invariant in campaign.shrunk:
             path, result = campaign.shrunk[invariant]
-            entry["shrunk"] = {"file": str(path), "runs": result.runs,
-                               "steps": list(result.steps)}  # fmt: skip
+            entry["shrunk"] = {"file": str(path), "runs": result.runs, "steps": list(result.steps)}
         by_invariant[invariant] = entry
     summary.update(
         generated={"seed": seed, "space": space, "count": len(campaign.specs)},
@@ -135,6 +159,8 @@ def summarise_generated(campaign: GeneratedCampaign, *, seed: int, space: str) -
         distributions=kpi_distributions(campaign.results),
     )
     for cell in summary["cells"]:
-        cell["violations"] = [{"invariant": v.invariant, "detail": v.detail}
-                              for v in campaign.violations.get(cell["scenario"], [])]  # fmt: skip
+        cell["violations"] = [
+            {"invariant": v.invariant, "detail": v.detail}
+            for v in campaign.violations.get(cell["scenario"], [])
+        ]
     return summary

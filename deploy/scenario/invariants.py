@@ -177,8 +177,10 @@ def _stop_missed(spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) ->
         if stop is None:
             found.append(f"stop {point.id} not served")
         elif abs(stop["stop_error_m"]) > settings.max_stop_error_m:
-            found.append(f"stop {point.id} {stop['stop_error_m']:+.3f} m from its point "
-                         f"(tolerance {settings.max_stop_error_m} m)")  # fmt: skip
+            found.append(
+                f"stop {point.id} {stop['stop_error_m']:+.3f} m from its point "
+                f"(tolerance {settings.max_stop_error_m} m)"
+            )
     return found
 
 
@@ -187,8 +189,10 @@ def _nmpc_unbounded(_spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings
     failures = kpis.get("nmpc_failures") or 0
     fallback = kpis.get("nmpc_fallback_s") or 0.0
     if fallback > settings.nmpc_max_fallback_s:
-        found.append(f"{failures} NMPC failures: {fallback:.1f} s on the fallback law "
-                     f"(bound {settings.nmpc_max_fallback_s:g} s)")  # fmt: skip
+        found.append(
+            f"{failures} NMPC failures: {fallback:.1f} s on the fallback law "
+            f"(bound {settings.nmpc_max_fallback_s:g} s)"
+        )
     solve = kpis.get("nmpc_ms") or {}
     longest = solve.get("max")
     if longest is not None and settings.nmpc_max_ms is not None and longest > settings.nmpc_max_ms:
@@ -209,9 +213,12 @@ _CHECKS: dict[InvariantName, Callable[[ScenarioSpec, Kpis, InvariantSettings], l
 
 
 def judge(
-    spec: ScenarioSpec, kpis: Kpis | None, *, settings: InvariantSettings | None = None,
+    spec: ScenarioSpec,
+    kpis: Kpis | None,
+    *,
+    settings: InvariantSettings | None = None,
     error: str | None = None,
-) -> list[Violation]:  # fmt: skip
+) -> list[Violation]:
     """Every violation of the run of ``spec`` whose KPIs are ``kpis`` (None: it raised).
 
     The settings are ``settings``, else the scenario's ``[invariants]``, else the defaults;
@@ -240,6 +247,7 @@ def invariant_expectations(spec: ScenarioSpec, kpis: Kpis) -> list[dict[str, Any
         if name in settings.skip:
             continue
         found = [v.detail for v in violations if v.invariant == name]
-        entries.append({"name": f"invariant {name}", "ok": not found,
-                        "detail": "; ".join(found) or "holds"})  # fmt: skip
+        entries.append(
+            {"name": f"invariant {name}", "ok": not found, "detail": "; ".join(found) or "holds"}
+        )
     return entries

@@ -151,8 +151,11 @@ def odometry_interval_kpi(
     values = columns.get("odometry_interval_m")
     if values is None:
         return None
-    return {"max": _finite_max(values), "at_stops": [float(v) for v in at_stops_m],
-            "outside_max_m": max(outside_m, 0.0)}  # fmt: skip
+    return {
+        "max": _finite_max(values),
+        "at_stops": [float(v) for v in at_stops_m],
+        "outside_max_m": max(outside_m, 0.0),
+    }
 
 
 def _finite_max(values: np.ndarray | None) -> float | None:
@@ -185,9 +188,13 @@ def _energy_kpis(columns: Mapping[str, np.ndarray]) -> dict[str, float | None]:
     the end; None on plants without a powertrain."""
     soc, times = columns["soc"], columns["time_s"]
     if soc.size == 0 or not np.isfinite(soc).all():
-        return {"soc_end": None, "soc_min": None, "soc_min_time_s": None,
-                "soc_min_time_from_cruise_s": None,
-                "range_extender_kw_after_soc_min": None}  # fmt: skip
+        return {
+            "soc_end": None,
+            "soc_min": None,
+            "soc_min_time_s": None,
+            "soc_min_time_from_cruise_s": None,
+            "range_extender_kw_after_soc_min": None,
+        }
     lowest = int(np.argmin(soc))
     after = times > times[lowest] + RANGE_EXTENDER_SETTLE_S
     extender = columns["range_extender_kw"][after]
@@ -231,9 +238,13 @@ def _holds(value: Any, op: str, expected: Any) -> bool:
     if isinstance(value, float) and math.isnan(value):
         return False
     comparisons = {
-        "<=": value <= expected, "<": value < expected, ">=": value >= expected,
-        ">": value > expected, "==": value == expected, "!=": value != expected,
-    }  # fmt: skip
+        "<=": value <= expected,
+        "<": value < expected,
+        ">=": value >= expected,
+        ">": value > expected,
+        "==": value == expected,
+        "!=": value != expected,
+    }
     return bool(comparisons[op])
 
 

@@ -92,8 +92,9 @@ def parse_scenario(text: str, *, path: str = "<scenario>") -> ScenarioSpec:
     except tomllib.TOMLDecodeError as exc:
         position = _TOML_POSITION.search(str(exc))
         reason = _TOML_POSITION.sub("", str(exc)).strip()
-        raise ScenarioFileError(path, int(position.group(1)) if position else None,
-                                f"TOML: {reason}") from exc  # fmt: skip
+        raise ScenarioFileError(
+            path, int(position.group(1)) if position else None, f"TOML: {reason}"
+        ) from exc
     try:
         return ScenarioSpec.model_validate(data)
     except ValidationError as exc:
@@ -113,8 +114,9 @@ def load_scenario(name_or_path: str | Path) -> ScenarioSpec:
         path = SCENARIO_DIR / f"{name_or_path}.toml"
         if not path.is_file():
             known = ", ".join(scenario_names())
-            raise ScenarioFileError(str(name_or_path), None,
-                                    f"no such scenario file or name (known: {known})")  # fmt: skip
+            raise ScenarioFileError(
+                str(name_or_path), None, f"no such scenario file or name (known: {known})"
+            )
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:

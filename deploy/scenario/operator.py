@@ -33,9 +33,14 @@ class LockstepOperator:
     """Confirms vigilance and EB-rearm requests of ``node`` through ``session``."""
 
     def __init__(
-        self, session: zenoh.Session, node: OnboardNode, *, present: bool = True,
-        reaction_s: float = 0.0, name: str = "simulated-operator",
-    ) -> None:  # fmt: skip
+        self,
+        session: zenoh.Session,
+        node: OnboardNode,
+        *,
+        present: bool = True,
+        reaction_s: float = 0.0,
+        name: str = "simulated-operator",
+    ) -> None:
         self.session = session
         self.node = node
         self.present = present
@@ -72,10 +77,19 @@ class LockstepOperator:
 
     def command(self, body: m.CommandBody) -> m.CommandAck:
         self._command_id += 1
-        command = m.Command(vehicle_id=self.node.vehicle_id, command_id=self._command_id,
-                            issued_by=self.name, body=body)  # fmt: skip
-        ack: m.CommandAck = request(self.session, COMMAND, command, timeout_s=REQUEST_TIMEOUT_S,
-                                    vehicle=self.node.vehicle_id)  # fmt: skip
+        command = m.Command(
+            vehicle_id=self.node.vehicle_id,
+            command_id=self._command_id,
+            issued_by=self.name,
+            body=body,
+        )
+        ack: m.CommandAck = request(
+            self.session,
+            COMMAND,
+            command,
+            timeout_s=REQUEST_TIMEOUT_S,
+            vehicle=self.node.vehicle_id,
+        )
         self.answers.append(ack)
         return ack
 

@@ -19,9 +19,9 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt  # noqa: E402 - the backend is chosen first
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
 
 from protocol.units import MPS_PER_KMH
 
@@ -81,12 +81,19 @@ def _odometry_figure(c: Mapping[str, np.ndarray]) -> Figure:
     figure, axes = plt.subplots(1, 1, figsize=(10, 3.2))
     t, truth = c["time_s"], c["position_m"]
     interval = c["odometry_interval_m"]
-    axes.fill_between(t, -interval, interval, color="tab:blue", alpha=0.15,
-                      label="ETCS confidence interval [m]")  # fmt: skip
-    axes.plot(t, c["etcs_position_m"] - truth, color="tab:blue", lw=1,
-              label="ETCS estimate − truth [m]")  # fmt: skip
-    axes.plot(t, c["estimated_position_m"] - truth, color="tab:orange", lw=1,
-              label="fused estimate − truth [m]")  # fmt: skip
+    axes.fill_between(
+        t, -interval, interval, color="tab:blue", alpha=0.15, label="ETCS confidence interval [m]"
+    )
+    axes.plot(
+        t, c["etcs_position_m"] - truth, color="tab:blue", lw=1, label="ETCS estimate − truth [m]"
+    )
+    axes.plot(
+        t,
+        c["estimated_position_m"] - truth,
+        color="tab:orange",
+        lw=1,
+        label="fused estimate − truth [m]",
+    )
     axes.set_ylabel("m")
     axes.set_xlabel("simulated time [s]")
     axes.legend(loc="upper left", fontsize=8)
@@ -106,11 +113,13 @@ def _timeline_figure(c: Mapping[str, np.ndarray]) -> Figure:
             if k == len(values) or values[k] != values[start]:
                 end = t[k] if k < len(values) else t[-1]
                 name = str(values[start])
-                axes.broken_barh([(t[start], max(end - t[start], 1e-3))], (row - 0.4, 0.8),
-                                 color=colours(names.index(name) % 20))  # fmt: skip
+                axes.broken_barh(
+                    [(t[start], max(end - t[start], 1e-3))],
+                    (row - 0.4, 0.8),
+                    color=colours(names.index(name) % 20),
+                )
                 if end - t[start] > 0.04 * (t[-1] - t[0] + 1e-9):
-                    axes.text((t[start] + end) / 2, row, name, ha="center", va="center",
-                              fontsize=7)  # fmt: skip
+                    axes.text((t[start] + end) / 2, row, name, ha="center", va="center", fontsize=7)
                 start = k
     axes.set_yticks(range(len(rows)), [name for name, _ in rows])
     axes.set_xlabel("simulated time [s]")
@@ -127,8 +136,12 @@ def render_report(kpis: Mapping[str, Any], columns: Mapping[str, np.ndarray]) ->
     """The report's HTML."""
     figures: list[str] = []
     if columns["time_s"].size:
-        figures = [_png(_speed_figure(columns)), _png(_position_figure(columns)),
-                   _png(_odometry_figure(columns)), _png(_timeline_figure(columns))]  # fmt: skip
+        figures = [
+            _png(_speed_figure(columns)),
+            _png(_position_figure(columns)),
+            _png(_odometry_figure(columns)),
+            _png(_timeline_figure(columns)),
+        ]
     expectations = "".join(
         f'<tr class="{"ok" if e["ok"] else "fail"}"><td>{"✔" if e["ok"] else "✘"}</td>'
         f"<td>{html.escape(e['name'])}</td><td>{html.escape(e['detail'])}</td></tr>"
@@ -140,8 +153,11 @@ def render_report(kpis: Mapping[str, Any], columns: Mapping[str, np.ndarray]) ->
         f"<td>{s.get('odometry_interval_m', float('nan')):.1f}</td></tr>"
         for s in kpis.get("stops", [])
     )
-    scalars = [(k, json.dumps(v)) for k, v in kpis.items()
-               if k not in ("stops", "expectations", "vc_interventions")]  # fmt: skip
+    scalars = [
+        (k, json.dumps(v))
+        for k, v in kpis.items()
+        if k not in ("stops", "expectations", "vc_interventions")
+    ]
     verdict = "passed" if kpis.get("passed") else "FAILED"
     interventions = html.escape(json.dumps(kpis.get("vc_interventions", []), indent=1))
     images = "".join(f'<img alt="plot" src="data:image/png;base64,{p}">' for p in figures)

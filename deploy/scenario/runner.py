@@ -101,11 +101,23 @@ OBSTACLE_MARGIN_M = 20.0
 """The RBC ends the MA this far before a reported obstacle [m]."""
 VC_DATALOG = "vc-datalog.jsonl"
 """The VC's datalog in a run's report directory (``ato vc replay`` reads it)."""
-WHOLE_STACK_FAULTS = (AtoFailure, FrictionDrop, Obstacle, OdometerFailure, RelayFault,
-                      SensorDropout, ShortenedAuthority, TachometerFault,
-                      TemporarySpeedRestriction, TracksideRestart, UdpLinkFault,
-                      VigilanceAbsent, ZenohLinkLoss, WheelDiameterError,
-                      BaliseMissed)  # fmt: skip
+WHOLE_STACK_FAULTS = (
+    AtoFailure,
+    FrictionDrop,
+    Obstacle,
+    OdometerFailure,
+    RelayFault,
+    SensorDropout,
+    ShortenedAuthority,
+    TachometerFault,
+    TemporarySpeedRestriction,
+    TracksideRestart,
+    UdpLinkFault,
+    VigilanceAbsent,
+    ZenohLinkLoss,
+    WheelDiameterError,
+    BaliseMissed,
+)
 """The faults a whole-stack run injects (docs/scenarios.md)."""
 
 
@@ -149,9 +161,11 @@ ProgressCallback = Callable[[Progress], None]
 
 
 def run_scenario(
-    spec: ScenarioSpec, options: RunOptions = RunOptions(), *,
+    spec: ScenarioSpec,
+    options: RunOptions = RunOptions(),
+    *,
     progress: ProgressCallback | None = None,
-) -> RunOutcome:  # fmt: skip
+) -> RunOutcome:
     """Run ``spec``; the outcome's ``kpis`` follow CONTRACT.md §4."""
     seed = spec.seed if options.seed is None else options.seed
     started = time.perf_counter()
@@ -206,19 +220,31 @@ def _run_vc(spec: ScenarioSpec, seed: int) -> RunOutcome:
         raise ScenarioRunError(f"no VC catalogue scenario {spec.vc.catalogue!r}") from exc
     result = run_vc_scenario(scenario, replicas=spec.vc.replicas, seed=seed)
     kpis: dict[str, Any] = {
-        "scenario": spec.name, "seed": seed, "sim_time_s": scenario.duration_s,
-        "stops": [], "eoa_stops": [], "max_overspeed_kmh": 0.0, "etcs_sb_count": 0,
+        "scenario": spec.name,
+        "seed": seed,
+        "sim_time_s": scenario.duration_s,
+        "stops": [],
+        "eoa_stops": [],
+        "max_overspeed_kmh": 0.0,
+        "etcs_sb_count": 0,
         "etcs_eb_count": 0,
         "vc_eb_count": sum(1 for e in result.events if e.kind.value == "eb_commanded"),
-        "system_decay": result.decay_s is not None, "traction_energy_kwh": 0.0,
-        "regen_energy_kwh": 0.0, "max_jerk_mps3": 0.0, "ad_speed_rms_kmh": None,
-        "rd_speed_rms_kmh": None, "max_switch_du_frac": None,
-        "position_error_m": {"rms": 0.0, "max": 0.0}, "nmpc_ms": None, "nmpc_failures": 0,
+        "system_decay": result.decay_s is not None,
+        "traction_energy_kwh": 0.0,
+        "regen_energy_kwh": 0.0,
+        "max_jerk_mps3": 0.0,
+        "ad_speed_rms_kmh": None,
+        "rd_speed_rms_kmh": None,
+        "max_switch_du_frac": None,
+        "position_error_m": {"rms": 0.0, "max": 0.0},
+        "nmpc_ms": None,
+        "nmpc_failures": 0,
         "nmpc_fallback_s": 0.0,
         "vc_interventions": _vc_interventions(result),
-        "vc_outcome": result.outcome.value, "vc_expected_outcome": result.expected.value,
+        "vc_outcome": result.outcome.value,
+        "vc_expected_outcome": result.expected.value,
         "vc_decay_reasons": list(result.decay_reasons),
-    }  # fmt: skip
+    }
     kpis["expectations"] = check_expectations(kpis, spec.expect)
     kpis["passed"] = all(item["ok"] for item in kpis["expectations"])
     return RunOutcome(_ordered_keys(kpis))
@@ -228,13 +254,19 @@ def _vc_interventions(result: ScenarioResult) -> list[dict[str, Any]]:
     if result.eb_command_s is None:
         return []
     hazard = result.hazard_s
-    return [{
-        "cause": result.key,
-        "hazard_to_eb_command_ms": None if hazard is None else _ms(result.eb_command_s - hazard),
-        "total_to_full_eb_ms": (
-            None if hazard is None or result.full_eb_s is None else _ms(result.full_eb_s - hazard)
-        ),
-    }]  # fmt: skip
+    return [
+        {
+            "cause": result.key,
+            "hazard_to_eb_command_ms": None
+            if hazard is None
+            else _ms(result.eb_command_s - hazard),
+            "total_to_full_eb_ms": (
+                None
+                if hazard is None or result.full_eb_s is None
+                else _ms(result.full_eb_s - hazard)
+            ),
+        }
+    ]
 
 
 # -- the whole stack ---------------------------------------------------------------------------
@@ -252,20 +284,28 @@ class _Stack:
     """Trackside, onboard and operator of one run, wired together."""
 
     def __init__(
-        self, spec: ScenarioSpec, options: RunOptions, seed: int, scratch: Path,
-        trackside_zenoh: zenoh.Session, node: OnboardNode, link: ZenohLinkFault | None = None,
-    ) -> None:  # fmt: skip
+        self,
+        spec: ScenarioSpec,
+        options: RunOptions,
+        seed: int,
+        scratch: Path,
+        trackside_zenoh: zenoh.Session,
+        node: OnboardNode,
+        link: ZenohLinkFault | None = None,
+    ) -> None:
         self.spec, self.options, self.seed = spec, options, seed
         self.link = link
         self.trackside_zenoh = trackside_zenoh
         simulated = (spec.vehicle.id,) if spec.operator.simulated else ()
         self.settings = Settings(
-            database_url=f"sqlite:///{scratch / 'trackside.db'}", zenoh_connect=(),
-            admin_user="scenario", admin_password=secrets.token_urlsafe(16),
+            database_url=f"sqlite:///{scratch / 'trackside.db'}",
+            zenoh_connect=(),
+            admin_user="scenario",
+            admin_password=secrets.token_urlsafe(16),
             simulated_operators=simulated,
             simulated_operator_reaction_s=spec.operator.reaction_s,
             simulated_operator_thread=False,
-        )  # fmt: skip
+        )
         self.client: TestClient | None = None
         self.headers: dict[str, str] = {}
         self._selected = False
@@ -299,8 +339,9 @@ class _Stack:
         unwired = [f.kind for f in spec.faults if not isinstance(f, WHOLE_STACK_FAULTS)]
         if unwired:
             raise ScenarioRunError(f"faults not injected in whole-stack runs: {unwired}")
-        if spec.vehicle.fidelity != "bogie" and any(isinstance(f, FrictionDrop)
-                                                    for f in spec.faults):  # fmt: skip
+        if spec.vehicle.fidelity != "bogie" and any(
+            isinstance(f, FrictionDrop) for f in spec.faults
+        ):
             raise ScenarioRunError("friction_drop needs the bogie model (vehicle.fidelity)")
         with ExitStack() as stack:
             scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ato-run-")))
@@ -320,8 +361,12 @@ class _Stack:
             )
             link = None
             if proxy is not None:
-                link = ZenohLinkFault(proxy, onboard=onboard_zenoh, trackside=trackside_zenoh,
-                                      vehicle_id=spec.vehicle.id)  # fmt: skip
+                link = ZenohLinkFault(
+                    proxy,
+                    onboard=onboard_zenoh,
+                    trackside=trackside_zenoh,
+                    vehicle_id=spec.vehicle.id,
+                )
                 stack.callback(link.close)
             vehicle = spec.vehicle
             if options.report_dir is not None and vehicle.vc_datalog:
@@ -329,18 +374,22 @@ class _Stack:
             clock = SimClock() if options.fast else RealTimeClock(options.speed)
             node = OnboardNode(
                 OnboardSettings(
-                    vehicle_id=vehicle.id, fidelity=vehicle.fidelity,
+                    vehicle_id=vehicle.id,
+                    fidelity=vehicle.fidelity,
                     start_position_m=vehicle.start_position_m,
-                    energy_plans=vehicle.energy_plans, vc_replicas=vehicle.vc_replicas,
-                    vc_faults=_vc_faults(spec.faults), initial_soc=vehicle.initial_soc,
+                    energy_plans=vehicle.energy_plans,
+                    vc_replicas=vehicle.vc_replicas,
+                    vc_faults=_vc_faults(spec.faults),
+                    initial_soc=vehicle.initial_soc,
                     vc_datalog=(
-                        (options.report_dir or scratch) / VC_DATALOG
-                        if vehicle.vc_datalog else None
+                        (options.report_dir or scratch) / VC_DATALOG if vehicle.vc_datalog else None
                     ),
                     sensors=_sensor_settings(spec.faults, seed),
                 ),
-                session=onboard_zenoh, clock=clock, track_map=TrackMap(load_seed_line(spec.line)),
-            )  # fmt: skip
+                session=onboard_zenoh,
+                clock=clock,
+                track_map=TrackMap(load_seed_line(spec.line)),
+            )
             stack.callback(node.close)
             run = cls(spec, options, seed, scratch, trackside_zenoh, node, link)
             run.start_trackside()
@@ -354,9 +403,13 @@ class _Stack:
         self.client = client
         password = self.settings.admin_password
         assert password is not None
-        answer = client.post("/api/v1/auth/token", data={
-            "username": "scenario", "password": password.get_secret_value(),
-        })  # fmt: skip
+        answer = client.post(
+            "/api/v1/auth/token",
+            data={
+                "username": "scenario",
+                "password": password.get_secret_value(),
+            },
+        )
         self.headers = {"Authorization": f"Bearer {answer.json()['access_token']}"}
         self._selected = False
 
@@ -424,8 +477,9 @@ class _Stack:
         self._session_up = established
         now_s = round(self.node.clock.now_s, 6)
         if not established:
-            self.session_outages.append({"lost_s": now_s, "reestablished_s": None,
-                                         "duration_s": None})  # fmt: skip
+            self.session_outages.append(
+                {"lost_s": now_s, "reestablished_s": None, "duration_s": None}
+            )
         elif self.session_outages and self.session_outages[-1]["reestablished_s"] is None:
             outage = self.session_outages[-1]
             lost_s = outage["lost_s"]
@@ -435,10 +489,13 @@ class _Stack:
     def _progress(self) -> Progress:
         stack = self.node.stack
         return Progress(
-            sim_time_s=self.node.clock.now_s, duration_s=self.spec.duration_s,
-            speed_kmh=self.node.plant.speed_mps / MPS_PER_KMH, etcs_mode=stack.etcs.mode.value,
-            ato_state=stack.ato_state.value, sc_state=stack.driving.state.value,
-        )  # fmt: skip
+            sim_time_s=self.node.clock.now_s,
+            duration_s=self.spec.duration_s,
+            speed_kmh=self.node.plant.speed_mps / MPS_PER_KMH,
+            etcs_mode=stack.etcs.mode.value,
+            ato_state=stack.ato_state.value,
+            sc_state=stack.driving.state.value,
+        )
 
     def state(self) -> State:
         """The fields of ``deploy.scenario.conditions`` now."""
@@ -451,9 +508,10 @@ class _Stack:
         ended = driving.journey is not None and next_stop is None and standstill
         etcs = stack.etcs.output
         eoa_distance_m = (
-            math.inf if etcs is None or etcs.end_of_authority_distance_m is None
+            math.inf
+            if etcs is None or etcs.end_of_authority_distance_m is None
             else etcs.end_of_authority_distance_m
-        )  # fmt: skip
+        )
         return {
             "time_s": node.clock.now_s,
             "position_m": node.track_map.normalise(plant.position_m),
@@ -499,10 +557,13 @@ class _Stack:
                     self._done.add(index)
                     self.recorder.hazards_s.append(now_s)
                     self._inject(fault)
-            elif isinstance(fault, TemporarySpeedRestriction):
-                if index not in self._done and _fault_due(fault, now_s, state):
-                    self._done.add(index)
-                    self._speed_restriction(f"tsr-{index + 1}", fault)
+            elif (
+                isinstance(fault, TemporarySpeedRestriction)
+                and index not in self._done
+                and _fault_due(fault, now_s, state)
+            ):
+                self._done.add(index)
+                self._speed_restriction(f"tsr-{index + 1}", fault)
         self._zenoh_link(link_lost)
         # The operator at the console sees the vehicle only over the link, and answers through it.
         self.operator_present = present and link_lost is None
@@ -556,10 +617,16 @@ class _Stack:
     def _speed_restriction(self, restriction_id: str, fault: TemporarySpeedRestriction) -> None:
         """The RBC (REST, as admin) sends a TSR; the run goes on once the vehicle has it."""
         before = self.node.inputs_received[2]
-        body = {"id": restriction_id, "line_id": self.spec.line, "start_m": fault.start_m,
-                "end_m": fault.end_m, "speed_kmh": fault.speed_kmh}  # fmt: skip
-        answer = self.rest.post(f"/api/v1/rbc/{self.spec.vehicle.id}/tsr", json=body,
-                                headers=self.headers)  # fmt: skip
+        body = {
+            "id": restriction_id,
+            "line_id": self.spec.line,
+            "start_m": fault.start_m,
+            "end_m": fault.end_m,
+            "speed_kmh": fault.speed_kmh,
+        }
+        answer = self.rest.post(
+            f"/api/v1/rbc/{self.spec.vehicle.id}/tsr", json=body, headers=self.headers
+        )
         accepted = answer.status_code == 201
         self.actions.append(
             _ActionLog("rbc.tsr", self.node.clock.now_s, accepted, answer.text[:200])
@@ -581,8 +648,12 @@ class _Stack:
         url = f"/api/v1/rbc/{self.spec.vehicle.id}/ma"
         before = self.node.inputs_received[1]
         if self.rest.get(url, headers=self.headers).status_code == 404 or not absolute:
-            body = {"start_m": here, "end_of_authority_m": end_m, "line_id": self.spec.line,
-                    "danger_point_m": danger_point_m}  # fmt: skip
+            body = {
+                "start_m": here,
+                "end_of_authority_m": end_m,
+                "line_id": self.spec.line,
+                "danger_point_m": danger_point_m,
+            }
             answer = self.rest.post(url, json=body, headers=self.headers)
         else:
             end = {"end_of_authority_m": end_m, "danger_point_m": danger_point_m}
@@ -646,8 +717,9 @@ class _Stack:
             self.actions.append(_ActionLog(action.do, now_s, False, "no such request pending"))
             self.failures.append(f"{action.do} at {now_s:.1f} s: no such request pending")
             return
-        answer = self.rest.post(f"/api/v1/vehicles/{self.spec.vehicle.id}/{route}", json=body,
-                                headers=self.headers)  # fmt: skip
+        answer = self.rest.post(
+            f"/api/v1/vehicles/{self.spec.vehicle.id}/{route}", json=body, headers=self.headers
+        )
         if answer.status_code != 200:
             detail = f"{answer.status_code}: {answer.text[:200]}"
             self.actions.append(_ActionLog(action.do, now_s, False, detail))
@@ -720,24 +792,27 @@ class _Stack:
         journey = self.spec.journey
         assert journey is not None
         body = {
-            "id": journey.id, "line_id": self.spec.line,
+            "id": journey.id,
+            "line_id": self.spec.line,
             "start_position_m": self.node.track_map.normalise(self.node.plant.position_m),
             "max_speed_mps": (
                 None if journey.max_speed_kmh is None else journey.max_speed_kmh * MPS_PER_KMH
             ),
             "timing_points": [p.model_dump(mode="json") for p in journey.timing_points],
-        }  # fmt: skip
+        }
         stored = self.rest.post("/api/v1/journeys", json=body, headers=self.headers)
         if stored.status_code != 201:
             return False, f"journey not stored ({stored.status_code}): {stored.text}"
         answer: list[Any] = []
 
         def send() -> None:
-            answer.append(self.rest.post(
-                f"/api/v1/vehicles/{self.spec.vehicle.id}/journey-profile",
-                json={"journey_id": journey.id, "timeout_s": JOURNEY_TIMEOUT_S},
-                headers=self.headers,
-            ))  # fmt: skip
+            answer.append(
+                self.rest.post(
+                    f"/api/v1/vehicles/{self.spec.vehicle.id}/journey-profile",
+                    json={"journey_id": journey.id, "timeout_s": JOURNEY_TIMEOUT_S},
+                    headers=self.headers,
+                )
+            )
 
         journeys_before = self.node.inputs_received[0]
         sender = threading.Thread(target=send, daemon=True)
@@ -760,9 +835,12 @@ class _Stack:
 
     def _odometer_detection_s(self) -> float | None:
         """From the first odometer fault to the localisation reporting it, if both happened."""
-        starts = [f.start_s for f in self.spec.faults
-                  if isinstance(f, OdometerFailure) or (isinstance(f, SensorDropout)
-                                                        and f.sensor == "odometer")]  # fmt: skip
+        starts = [
+            f.start_s
+            for f in self.spec.faults
+            if isinstance(f, OdometerFailure)
+            or (isinstance(f, SensorDropout) and f.sensor == "odometer")
+        ]
         lost = self.recorder.sensor_lost_s.get("odometer")
         if not starts or lost is None:
             return None
@@ -785,31 +863,39 @@ class _Stack:
             nmpc_failures=stack.driving.nmpc.stats.failures,
             nmpc_step_s=stack.driving.nmpc.config.step_s,
             force_range_n=high - low,
-        )  # fmt: skip
+        )
         stops = [
             {
-                "name": stop.name, "planned_arrival_s": stop.planned_arrival_s,
+                "name": stop.name,
+                "planned_arrival_s": stop.planned_arrival_s,
                 "arrival_error_s": stop.arrival_s - stop.planned_arrival_s,
                 "stop_error_m": stop.stop_error_m,
                 "odometry_interval_m": stop.odometry_interval_m,
             }
             for stop in recorder.stops
-        ]  # fmt: skip
+        ]
         errors = columns["estimated_position_m"] - columns["position_m"]
         kpis = compute_kpis(
-            columns, stops=stops, counters=counters, position_errors_m=errors,
+            columns,
+            stops=stops,
+            counters=counters,
+            position_errors_m=errors,
             vc_interventions=recorder.vc_interventions,
-        )  # fmt: skip
+        )
         kpis["odometry_interval_m"] = odometry_interval_kpi(
-            columns, [stop.odometry_interval_m for stop in recorder.stops],
+            columns,
+            [stop.odometry_interval_m for stop in recorder.stops],
             outside_m=recorder.maxima.outside_interval_m,
-        )  # fmt: skip
+        )
         kpis.update(
-            scenario=self.spec.name, seed=self.seed, sim_time_s=node.clock.now_s,
+            scenario=self.spec.name,
+            seed=self.seed,
+            sim_time_s=node.clock.now_s,
             min_eoa_margin_m=_finite(recorder.maxima.eoa_margin_m),
             eoa_stops=[record.as_kpi() for record in recorder.eoa_stops],
             max_speed_over_cap_kmh=(
-                None if recorder.cap_mps is None
+                None
+                if recorder.cap_mps is None
                 else max(recorder.maxima.over_cap_mps, 0.0) / MPS_PER_KMH
             ),
             min_obstacle_margin_m=_finite(recorder.maxima.obstacle_margin_m),
@@ -822,21 +908,27 @@ class _Stack:
             session_losses=node.session_client.counters.lost,
             sessions_established=node.session_client.counters.accepted,
             session_outages=self.session_outages,
-            fallback_stops=sum(1 for t in stack.controller.transitions
-                               if t.trigger is Trigger.FALLBACK_STOP_COMPLETED),
-            zenoh_link=None if self.link is None else {
+            fallback_stops=sum(
+                1
+                for t in stack.controller.transitions
+                if t.trigger is Trigger.FALLBACK_STOP_COMPLETED
+            ),
+            zenoh_link=None
+            if self.link is None
+            else {
                 "cuts": self.link.proxy.stats().cuts,
                 "connections_dropped": self.link.connections_dropped,
                 "flaps_on_restore": self.link.flaps,
             },
-        )  # fmt: skip
+        )
         kpis["wall_time_breakdown"] = _wall_time_breakdown(
             node.executive.stats, self.lockstep_wall_s
         )
         kpis["actions"] = [vars(item) for item in self.actions]
         expectations = check_expectations(kpis, self.spec.expect)
-        expectations += [{"name": failure, "ok": False, "detail": failure}
-                         for failure in self.failures]  # fmt: skip
+        expectations += [
+            {"name": failure, "ok": False, "detail": failure} for failure in self.failures
+        ]
         if self.spec.invariants is not None:
             expectations += invariant_expectations(self.spec, kpis)
         kpis["expectations"] = expectations
@@ -865,9 +957,10 @@ def _wall_time_breakdown(stats: Mapping[str, TaskStats], lockstep_s: float) -> d
 
 
 def _wait(
-    condition: Callable[[], bool], worker: threading.Thread | None = None,
+    condition: Callable[[], bool],
+    worker: threading.Thread | None = None,
     timeout_s: float = WAIT_S,
-) -> bool:  # fmt: skip
+) -> bool:
     """Wait in wall time (the simulation stands still) until ``condition`` holds; False when
     it does not within ``timeout_s`` or ``worker`` ends first."""
     deadline = time.monotonic() + timeout_s
@@ -880,8 +973,9 @@ def _wait(
 
 def _fault_due(
     fault: Obstacle | ShortenedAuthority | TracksideRestart | TemporarySpeedRestriction,
-    now_s: float, state: State,
-) -> bool:  # fmt: skip
+    now_s: float,
+    state: State,
+) -> bool:
     """A one-shot fault's time has come and its condition (if any) holds."""
     if fault.at_s is not None and now_s < fault.at_s:
         return False
@@ -917,32 +1011,46 @@ def _sensor_settings(faults: tuple[Fault, ...], seed: int) -> SensorSettings:
     if udp:
         fault = udp[0]
         link = LinkFaults(
-            loss_rate=fault.loss, reorder_rate=fault.reorder, duplicate_rate=fault.duplicate,
-            corrupt_rate=fault.corrupt, faults_from_s=max(fault.start_s, link.faults_from_s),
+            loss_rate=fault.loss,
+            reorder_rate=fault.reorder,
+            duplicate_rate=fault.duplicate,
+            corrupt_rate=fault.corrupt,
+            faults_from_s=max(fault.start_s, link.faults_from_s),
             faults_until_s=fault.end_s,
-        )  # fmt: skip
+        )
     diameters = [fault.error for fault in faults if isinstance(fault, WheelDiameterError)]
     if len(diameters) > 1:
         raise ScenarioRunError("one wheel_diameter fault per scenario")
-    missed = frozenset(group for fault in faults if isinstance(fault, BaliseMissed)
-                       for group in fault.balise_group_ids)  # fmt: skip
+    missed = frozenset(
+        group
+        for fault in faults
+        if isinstance(fault, BaliseMissed)
+        for group in fault.balise_group_ids
+    )
     return SensorSettings(
-        seed=seed, link=link, wheel_diameter_error=diameters[0] if diameters else None,
+        seed=seed,
+        link=link,
+        wheel_diameter_error=diameters[0] if diameters else None,
         missed_balise_groups=missed,
         faults=SensorFaults(
-            imu_outages=tuple(outages["imu"]), odometer_outages=tuple(outages["odometer"]),
-            gps_outages=tuple(outages["gps"]), odometer_stuck_at_zero=tuple(stuck),
+            imu_outages=tuple(outages["imu"]),
+            odometer_outages=tuple(outages["odometer"]),
+            gps_outages=tuple(outages["gps"]),
+            odometer_stuck_at_zero=tuple(stuck),
         ),
-    )  # fmt: skip
+    )
 
 
 def _vc_faults(faults: tuple[Fault, ...]) -> VcFaults:
-    relay = [vc_hardware.RelayFault(start_s=f.start_s, end_s=f.end_s)
-             for f in faults if isinstance(f, RelayFault)]  # fmt: skip
+    relay = [
+        vc_hardware.RelayFault(start_s=f.start_s, end_s=f.end_s)
+        for f in faults
+        if isinstance(f, RelayFault)
+    ]
     tachometer = [
         vc_hardware.TachometerFault(
             mode=vc_hardware.TachometerFaultMode(f.mode), start_s=f.start_s, end_s=f.end_s
-        )  # fmt: skip
+        )
         for f in faults
         if isinstance(f, TachometerFault)
     ]

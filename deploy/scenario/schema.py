@@ -237,9 +237,12 @@ class ShortenedAuthority(_Triggered):
     kind: Literal["ma_shortened"]
     end_of_authority_m: float = Field(ge=0.0, allow_inf_nan=False, description="Chainage [m]")
     danger_point_m: float = Field(
-        default=SHORTENED_DANGER_POINT_M, ge=0.0, le=1000.0, allow_inf_nan=False,
+        default=SHORTENED_DANGER_POINT_M,
+        ge=0.0,
+        le=1000.0,
+        allow_inf_nan=False,
         description="D_DP: from the new EoA to its danger point [m]; 0 for none (SvL = EoA)",
-    )  # fmt: skip
+    )
 
 
 class TemporarySpeedRestriction(_Triggered):
@@ -285,9 +288,17 @@ class Expectation(_Model):
     name: str | None = None
 
 
-InvariantName = Literal["overspeed_mrsp", "overspeed_cap", "eoa_passed", "eoa_stop_far",
-                        "etcs_intervention", "vc_eb", "stop_missed", "nmpc_unbounded",
-                        "crash"]  # fmt: skip
+InvariantName = Literal[
+    "overspeed_mrsp",
+    "overspeed_cap",
+    "eoa_passed",
+    "eoa_stop_far",
+    "etcs_intervention",
+    "vc_eb",
+    "stop_missed",
+    "nmpc_unbounded",
+    "crash",
+]
 """The invariants of ``deploy.scenario.invariants``."""
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
+from typing import TypeVar
 
 from deploy.scenario.generate import Draw, LegDraw, render
 from deploy.scenario.invariants import Violation
@@ -38,7 +39,10 @@ class ShrinkResult:
     """The kept scenario's violations (the original's when nothing was kept)."""
 
 
-def _without(items: tuple[object, ...], index: int) -> tuple[object, ...]:
+_Item = TypeVar("_Item")
+
+
+def _without(items: tuple[_Item, ...], index: int) -> tuple[_Item, ...]:
     return items[:index] + items[index + 1 :]
 
 
@@ -49,30 +53,44 @@ def _towards(value: float, target: float, share: float, digits: int) -> float:
 def candidates(space: GeneratorSpace, base: Draw) -> Iterator[tuple[str, Draw]]:
     """Simpler draws than ``base``, simplest change first, each with what it changed."""
     for index, fault in enumerate(base.faults):
-        yield f"drop {fault.kind} (faults.{index})", replace(
-            base, faults=_without(base.faults, index))  # type: ignore[arg-type]  # fmt: skip
+        yield (
+            f"drop {fault.kind} (faults.{index})",
+            replace(base, faults=_without(base.faults, index)),
+        )
     for index, tsr in enumerate(base.tsrs):
-        yield f"drop TSR {index + 1} ({tsr.placement})", replace(
-            base, tsrs=_without(base.tsrs, index))  # type: ignore[arg-type]  # fmt: skip
+        yield (
+            f"drop TSR {index + 1} ({tsr.placement})",
+            replace(base, tsrs=_without(base.tsrs, index)),
+        )
     for index, ma in enumerate(base.mas):
-        yield f"drop MA shortening {index + 1} ({ma.placement})", replace(
-            base, mas=_without(base.mas, index))  # type: ignore[arg-type]  # fmt: skip
+        yield (
+            f"drop MA shortening {index + 1} ({ma.placement})",
+            replace(base, mas=_without(base.mas, index)),
+        )
     if len(base.legs) > 1:
         last = len(base.legs) - 1
-        yield "drop the last leg", replace(
-            base, legs=base.legs[:last], tsrs=tuple(t for t in base.tsrs if t.leg < last),
-            mas=tuple(a for a in base.mas if a.leg < last),
-        )  # fmt: skip
+        yield (
+            "drop the last leg",
+            replace(
+                base,
+                legs=base.legs[:last],
+                tsrs=tuple(t for t in base.tsrs if t.leg < last),
+                mas=tuple(a for a in base.mas if a.leg < last),
+            ),
+        )
     targets = space.shrink_to
     for share, how in ((1.0, "to"), (0.5, "half way to")):
         if base.cap_kmh != targets.cap_kmh:
             cap = _towards(base.cap_kmh, targets.cap_kmh, share, 0)
             yield f"cap {how} {targets.cap_kmh:g} km/h", replace(base, cap_kmh=cap)
         legs = tuple(
-            LegDraw(leg.stop_id, _towards(leg.slack, targets.slack, share, 3),
-                    _towards(leg.dwell_s, targets.dwell_s, share, 0))
+            LegDraw(
+                leg.stop_id,
+                _towards(leg.slack, targets.slack, share, 3),
+                _towards(leg.dwell_s, targets.dwell_s, share, 0),
+            )
             for leg in base.legs
-        )  # fmt: skip
+        )
         if legs != base.legs:
             yield f"slack and dwell {how} the library's", replace(base, legs=legs)
         if base.reaction_s != targets.reaction_s:
@@ -81,9 +99,14 @@ def candidates(space: GeneratorSpace, base: Draw) -> Iterator[tuple[str, Draw]]:
 
 
 def shrink(
-    space: GeneratorSpace, base: Draw, invariant: InvariantName, run: RunJudge, *,
-    max_runs: int = 12, violations: Sequence[Violation] = (),
-) -> ShrinkResult:  # fmt: skip
+    space: GeneratorSpace,
+    base: Draw,
+    invariant: InvariantName,
+    run: RunJudge,
+    *,
+    max_runs: int = 12,
+    violations: Sequence[Violation] = (),
+) -> ShrinkResult:
     """The simplest draw found that still violates ``invariant``, within ``max_runs`` runs."""
     current, kept = base, tuple(violations)
     steps: list[str] = []

@@ -110,8 +110,14 @@ class MaSpace(_Model):
         return self
 
 
-FaultKind = Literal["sensor_dropout", "odometer_failure", "udp_link", "zenoh_link_loss",
-                    "vigilance_absent", "ato_failure"]  # fmt: skip
+FaultKind = Literal[
+    "sensor_dropout",
+    "odometer_failure",
+    "udp_link",
+    "zenoh_link_loss",
+    "vigilance_absent",
+    "ato_failure",
+]
 
 
 class FaultKindSpace(_Model):

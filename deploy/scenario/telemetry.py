@@ -33,11 +33,27 @@ SAMPLE_S = TASK_TABLE["control"].period_s
 STANDSTILL_MPS = 0.01
 
 COLUMNS = (
-    "time_s", "position_m", "speed_mps", "acceleration_mps2", "force_n", "force_demand_n",
-    "mrsp_mps", "reference_speed_mps", "permitted_speed_mps", "estimated_position_m",
-    "sc_state", "ato_state", "etcs_mode", "vc_eb", "soc", "range_extender_kw",
-    "traction_energy_j", "wheel_slip_mps", "etcs_position_m", "odometry_interval_m",
-)  # fmt: skip
+    "time_s",
+    "position_m",
+    "speed_mps",
+    "acceleration_mps2",
+    "force_n",
+    "force_demand_n",
+    "mrsp_mps",
+    "reference_speed_mps",
+    "permitted_speed_mps",
+    "estimated_position_m",
+    "sc_state",
+    "ato_state",
+    "etcs_mode",
+    "vc_eb",
+    "soc",
+    "range_extender_kw",
+    "traction_energy_j",
+    "wheel_slip_mps",
+    "etcs_position_m",
+    "odometry_interval_m",
+)
 """The telemetry's columns: floats but the three states (their names as strings)."""
 
 
@@ -67,8 +83,11 @@ class EoaStopRecord:
     """ETCS's confidence interval then (the larger of over- and under-reading) [m]."""
 
     def as_kpi(self) -> dict[str, float]:
-        return {"time_s": self.time_s, "distance_to_eoa_m": self.distance_to_eoa_m,
-                "odometry_interval_m": self.odometry_interval_m}  # fmt: skip
+        return {
+            "time_s": self.time_s,
+            "distance_to_eoa_m": self.distance_to_eoa_m,
+            "odometry_interval_m": self.odometry_interval_m,
+        }
 
 
 EOA_SAME_M = 0.5
@@ -106,8 +125,11 @@ class _Intervention:
                 return None
             return round((end_s - self.hazard_s) * 1000.0, 3)
 
-        return {"cause": self.cause, "hazard_to_eb_command_ms": ms(self.command_s),
-                "total_to_full_eb_ms": ms(self.full_s)}  # fmt: skip
+        return {
+            "cause": self.cause,
+            "hazard_to_eb_command_ms": ms(self.command_s),
+            "total_to_full_eb_ms": ms(self.full_s),
+        }
 
 
 @dataclass
@@ -141,9 +163,11 @@ class TelemetryRecorder:
         vital = self.node.stack.vital
         self._eb = vital is not None and vital.eb_commanded  # powered up braked: no intervention
         self.node.executive.add_task(
-            "telemetry", self._step, period_s=TASK_TABLE["plant"].period_s,
+            "telemetry",
+            self._step,
+            period_s=TASK_TABLE["plant"].period_s,
             priority=RECORDER_PRIORITY,
-        )  # fmt: skip
+        )
 
     def _step(self, now_ns: int) -> None:
         node = self.node
@@ -160,12 +184,15 @@ class TelemetryRecorder:
             maxima.eoa_margin_m = min(maxima.eoa_margin_m, eoa_m - plant.position_m)
             self._note_eoa_stop(now_ns / NS_PER_S, eoa_m)
         interval = node.stack.etcs.odometry
-        outside_m = max(plant.position_m - interval.max_safe_front_m,
-                        interval.min_safe_front_m - plant.position_m)  # fmt: skip
+        outside_m = max(
+            plant.position_m - interval.max_safe_front_m,
+            interval.min_safe_front_m - plant.position_m,
+        )
         maxima.outside_interval_m = max(maxima.outside_interval_m, outside_m)
         if self.obstacle_m is not None:
-            maxima.obstacle_margin_m = min(maxima.obstacle_margin_m,
-                                           self.obstacle_m - plant.position_m)  # fmt: skip
+            maxima.obstacle_margin_m = min(
+                maxima.obstacle_margin_m, self.obstacle_m - plant.position_m
+            )
         self._note_stop(now_ns)
         self._note_emergency_brake(now_ns / NS_PER_S)
         self._note_sensors(now_ns / NS_PER_S)
@@ -188,8 +215,9 @@ class TelemetryRecorder:
             self._standing_since_s = now_s
             self._stopped_for_authority = node.stack.driving.stopping_for_authority
         settled = now_s - self._eoa_seen[1] >= EOA_SETTLED_S
-        if not (settled and self._stopped_for_authority
-                and node.stack.driving.stopping_for_authority):  # fmt: skip
+        if not (
+            settled and self._stopped_for_authority and node.stack.driving.stopping_for_authority
+        ):
             return
         distance_m = eoa_m - node.plant.position_m
         last = self.eoa_stops[-1] if self.eoa_stops else None
@@ -207,8 +235,11 @@ class TelemetryRecorder:
         estimate = None if chain is None else chain.estimate
         if estimate is None:
             return
-        for name, alive in (("imu", estimate.imu_alive), ("odometer", estimate.odometer_alive),
-                            ("gps", estimate.gps_alive)):  # fmt: skip
+        for name, alive in (
+            ("imu", estimate.imu_alive),
+            ("odometer", estimate.odometer_alive),
+            ("gps", estimate.gps_alive),
+        ):
             if alive is False and name not in self.sensor_lost_s:
                 self.sensor_lost_s[name] = now_s
 
@@ -252,12 +283,13 @@ class TelemetryRecorder:
         travelled = node.plant.position_m - driving._origin_m
         self.stops.append(
             StopRecord(
-                name=stop.timing_point_id, planned_arrival_s=stop.arrival_s,
+                name=stop.timing_point_id,
+                planned_arrival_s=stop.arrival_s,
                 arrival_s=driving.journey_time_s(now_ns / NS_PER_S),
                 stop_error_m=travelled - stop.distance_m,
                 odometry_interval_m=_interval_m(node),
             )
-        )  # fmt: skip
+        )
 
     def _sample(self, now_ns: int) -> None:
         node = self.node
@@ -314,8 +346,10 @@ def _wheel_slip_mps(plant: object) -> float:
     if not isinstance(truth, BogieTruth):
         return math.nan
     radius, speed = truth.wheel_radius_m, truth.speed_mps
-    return max(abs(truth.wheel_speed_front_radps * radius - speed),
-               abs(truth.wheel_speed_rear_radps * radius - speed))  # fmt: skip
+    return max(
+        abs(truth.wheel_speed_front_radps * radius - speed),
+        abs(truth.wheel_speed_rear_radps * radius - speed),
+    )
 
 
 def _interval_m(node: OnboardNode) -> float:

@@ -38,9 +38,13 @@ class ZenohLinkFault:
     defaults back off to 4 s), so that the link is back within a few tenths of a second."""
 
     def __init__(
-        self, proxy: LinkProxy, *, onboard: zenoh.Session, trackside: zenoh.Session,
+        self,
+        proxy: LinkProxy,
+        *,
+        onboard: zenoh.Session,
+        trackside: zenoh.Session,
         vehicle_id: str,
-    ) -> None:  # fmt: skip
+    ) -> None:
         self.proxy = proxy
         self._trackside_seen = LivelinessWatcher(onboard, ALIVE_TRACKSIDE.format(instance="*"))
         self._onboard_seen = LivelinessWatcher(trackside, ALIVE_ONBOARD.format(vehicle=vehicle_id))

@@ -100,8 +100,9 @@ class AutonomousDriving:
             self._sampled = (now_s, [d for d, _ in samples], [v for _, v in samples])
         return self._sampled[1], self._sampled[2]
 
-    def _ceilings(self, positions: npt.NDArray[np.float64],
-                  speed_mps: float | None) -> npt.NDArray[np.float64]:  # fmt: skip
+    def _ceilings(
+        self, positions: npt.NDArray[np.float64], speed_mps: float | None
+    ) -> npt.NDArray[np.float64]:
         """Each stage's ceiling [m/s]: the lowest MRSP within a few metres of its position (the
         train may run a little ahead of it), the permitted speed and the journey's cap, less
         the measured speed's under-read share; with the measured ``speed_mps``, never below
@@ -144,9 +145,11 @@ class AutonomousDriving:
             # for motion) would read as a force pushing it backwards.
             applied_force_n = max(applied_force_n, 0.0)
         result = self.controller.solve(
-            position_m=distance_m, speed_mps=speed_mps, applied_force_n=applied_force_n,
+            position_m=distance_m,
+            speed_mps=speed_mps,
+            applied_force_n=applied_force_n,
             reference=self.reference(now_s, speed_mps=speed_mps, distance_m=distance_m),
-        )  # fmt: skip
+        )
         self.last_result = result
         return min(result.force_n, self.stopping_force_n(now_s, distance_m, speed_mps))
 

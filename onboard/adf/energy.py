@@ -123,25 +123,35 @@ def optimal_leg(
     forces = np.asarray(solution.value(traction), dtype=float)
     brakes = np.asarray(solution.value(brake), dtype=float)
     return OptimalLeg(
-        distances_m=np.linspace(0.0, distance_m, count + 1), speeds_mps=speeds,
-        traction_forces_n=forces, brake_forces_n=brakes,
-        traction_energy_j=float(forces.sum() * ds), duration_s=duration_s,
-    )  # fmt: skip
+        distances_m=np.linspace(0.0, distance_m, count + 1),
+        speeds_mps=speeds,
+        traction_forces_n=forces,
+        brake_forces_n=brakes,
+        traction_energy_j=float(forces.sum() * ds),
+        duration_s=duration_s,
+    )
 
 
 def _ceilings_mps(
-    track_map: TrackMap, model: PointMassParameters, start_chainage_m: float, distance_m: float,
-    cap_mps: float | None, nodes: list[float],
-) -> list[float]:  # fmt: skip
+    track_map: TrackMap,
+    model: PointMassParameters,
+    start_chainage_m: float,
+    distance_m: float,
+    cap_mps: float | None,
+    nodes: list[float],
+) -> list[float]:
     """The speed ceilings the ODP's legs keep, at the nodes [m/s]: the MRSP under the plan's
     margin, held until the train has left a lower limit, and under the ETCS permitted curve
     into each lower limit; the optimum is taken under the same limits as the plans it judges."""
     from onboard.adf.odp_energy import LegTrack  # the legs' module builds on this one
 
     track = LegTrack(
-        track_map, model, start_chainage_m=start_chainage_m, distance_m=distance_m,
+        track_map,
+        model,
+        start_chainage_m=start_chainage_m,
+        distance_m=distance_m,
         cap_mps=cap_mps,
-    )  # fmt: skip
+    )
     ceilings = np.minimum(track.ceilings_mps, track.limit_envelope_mps)
     offsets = np.array(nodes) - start_chainage_m
     return [float(v) for v in np.interp(offsets, track.distances_m, ceilings)]

@@ -209,11 +209,15 @@ class DrivingFunction:
         cap = self.journey.plan.cap_mps or self.track_map.mrsp_mps(self.journey.start_chainage_m)
         try:
             plan = replan_from_state(
-                self.track_map, self.model, now_s=now_s - self._origin_s,
-                start_chainage_m=self.journey.start_chainage_m, distance_m=travelled,
-                speed_mps=speed_mps, stop_distance_m=stop.distance_m - travelled,
+                self.track_map,
+                self.model,
+                now_s=now_s - self._origin_s,
+                start_chainage_m=self.journey.start_chainage_m,
+                distance_m=travelled,
+                speed_mps=speed_mps,
+                stop_distance_m=stop.distance_m - travelled,
                 cruise_mps=max(cap, speed_mps),
-            )  # fmt: skip
+            )
         except InfeasibleLegError:
             return  # too close to stop on the plan: the current reference stops there anyway
         self.autonomous = AutonomousDriving(plan, self.model, self.nmpc)
@@ -230,8 +234,9 @@ class DrivingFunction:
         """How many stops of the journey have been served (stopped at, passed or skipped)."""
         return self._served
 
-    def skip_stop(self, timing_point_id: str, now_s: float, *, position_m: float,
-                  speed_mps: float) -> None:  # fmt: skip
+    def skip_stop(
+        self, timing_point_id: str, now_s: float, *, position_m: float, speed_mps: float
+    ) -> None:
         """Run through ``timing_point_id`` (checked by the caller: a stop ahead, not the last):
         the current leg is replanned to the next stop not skipped, on its schedule if it can."""
         self.skipped.add(timing_point_id)
@@ -266,8 +271,9 @@ class DrivingFunction:
         travelled = position_m - self._origin_m
         for delay_s in (0.0, *TSR_DELAYS_S):
             before = self.replans
-            self._replan(now_s, travelled, speed_mps, stop.distance_m,
-                         arrival_s=stop.arrival_s + delay_s)  # fmt: skip
+            self._replan(
+                now_s, travelled, speed_mps, stop.distance_m, arrival_s=stop.arrival_s + delay_s
+            )
             if self.replans > before:
                 return
 
@@ -276,8 +282,9 @@ class DrivingFunction:
         if stop is None or self.fallback_active:
             return
         self._eoa_stop_m = None
-        self._replan(now_s, position_m - self._origin_m, speed_mps, stop.distance_m,
-                     arrival_s=stop.arrival_s)  # fmt: skip
+        self._replan(
+            now_s, position_m - self._origin_m, speed_mps, stop.distance_m, arrival_s=stop.arrival_s
+        )
 
     # -- journey progress ----------------------------------------------------------------------
 
@@ -394,9 +401,15 @@ class DrivingFunction:
             self._eoa_stop_m = None
 
     def _replan(
-        self, now_s: float, travelled_m: float, speed_mps: float, stop_m: float,
-        *, arrival_s: float | None, braking_mps2: float | None = None,
-    ) -> None:  # fmt: skip
+        self,
+        now_s: float,
+        travelled_m: float,
+        speed_mps: float,
+        stop_m: float,
+        *,
+        arrival_s: float | None,
+        braking_mps2: float | None = None,
+    ) -> None:
         """A new current leg from the measured state; the journey's later legs kept when the
         leg ends at the journey's next stop."""
         assert self.journey is not None
@@ -415,12 +428,18 @@ class DrivingFunction:
         for limit_braking in limit_rates:
             try:
                 replanned = replan_from_state(
-                    self.track_map, self.model, now_s=journey_s,
-                    start_chainage_m=self.journey.start_chainage_m, distance_m=travelled_m,
-                    speed_mps=speed_mps, stop_distance_m=stop_m - travelled_m,
-                    cruise_mps=max(cap, speed_mps), arrival_s=arrival_s,
-                    braking_mps2=braking, limit_braking_mps2=limit_braking,
-                )  # fmt: skip
+                    self.track_map,
+                    self.model,
+                    now_s=journey_s,
+                    start_chainage_m=self.journey.start_chainage_m,
+                    distance_m=travelled_m,
+                    speed_mps=speed_mps,
+                    stop_distance_m=stop_m - travelled_m,
+                    cruise_mps=max(cap, speed_mps),
+                    arrival_s=arrival_s,
+                    braking_mps2=braking,
+                    limit_braking_mps2=limit_braking,
+                )
                 break
             except InfeasibleLegError:
                 continue
@@ -432,19 +451,25 @@ class DrivingFunction:
         self.autonomous = AutonomousDriving(
             OdpPlan(
                 [OdpLeg(leg.start_s, leg.start_distance_m, leg.segment) for leg in legs],
-                start_chainage_m=plan.start_chainage_m, track_map=self.track_map,
+                start_chainage_m=plan.start_chainage_m,
+                track_map=self.track_map,
                 cap_mps=plan.cap_mps,
             ),
-            self.model, self.nmpc,
-        )  # fmt: skip
+            self.model,
+            self.nmpc,
+        )
         self.replans += 1
 
     def _catch_up(self, now_s: float, position_m: float, speed_mps: float) -> None:
         """Replan the leg from the measured state when the train has fallen
         :data:`BEHIND_PLAN_M` behind its reference and nothing but the plan holds it back (the
         ETCS permitted speed at the MRSP or above)."""
-        if (self.journey is None or self.autonomous is None or self.fallback_active
-                or now_s < self._catch_up_after_s):  # fmt: skip
+        if (
+            self.journey is None
+            or self.autonomous is None
+            or self.fallback_active
+            or now_s < self._catch_up_after_s
+        ):
             return
         travelled = position_m - self._origin_m
         reference_m = float(self.autonomous.plan.reference(now_s - self._origin_s)[0])
@@ -469,8 +494,9 @@ class DrivingFunction:
         arrived would run it through the stop)."""
         later = [leg for leg in plan.legs if leg.start_distance_m >= stop_m - STOP_TOLERANCE_M]
         assert self.journey is not None
-        stop = next((s for s in self.journey.stops
-                     if abs(s.distance_m - stop_m) <= STOP_TOLERANCE_M), None)  # fmt: skip
+        stop = next(
+            (s for s in self.journey.stops if abs(s.distance_m - stop_m) <= STOP_TOLERANCE_M), None
+        )
         if not later or stop is None:
             return later
         delay_s = arrival_end_s + (stop.departure_s - stop.arrival_s) - later[0].start_s
@@ -508,9 +534,12 @@ class DrivingFunction:
             ceiling = min(self.permitted_speed_mps, mrsp)
             target = min(self.remote_target_mps or 0.0, ceiling - MRSP_MARGIN_MPS)
             u_rd = self.rd.step(
-                self.control_s, target_speed_mps=max(target, 0.0), speed_mps=speed_mps,
-                gradient_permille=gradient_permille, force_limits_n=force_limits_n,
-            )  # fmt: skip
+                self.control_s,
+                target_speed_mps=max(target, 0.0),
+                speed_mps=speed_mps,
+                gradient_permille=gradient_permille,
+                force_limits_n=force_limits_n,
+            )
         u_ad = 0.0
         if self.sc.needs_autonomous:
             self._follow_authority(now_s, position_m, speed_mps)
@@ -519,9 +548,11 @@ class DrivingFunction:
         if self.sc.needs_autonomous and self.autonomous is not None:
             self.autonomous.set_permitted_speed(self.permitted_speed_mps)
             u_ad = self.autonomous.force_n(
-                now_s - self._origin_s, distance_m=position_m - self._origin_m,
-                speed_mps=speed_mps, applied_force_n=applied_force_n,
-            )  # fmt: skip
+                now_s - self._origin_s,
+                distance_m=position_m - self._origin_m,
+                speed_mps=speed_mps,
+                applied_force_n=applied_force_n,
+            )
         force = self.sc.step(self.control_s, now_s, remote_force_n=u_rd, autonomous_force_n=u_ad)
         self.sc.acknowledge_replan()
         low, high = force_limits_n

@@ -75,9 +75,11 @@ def plan_journey(
             )
         travelled += ahead
         here = point.position_m
-        departure = point.arrival_time_s if point.departure_time_s is None else (
-            max(point.departure_time_s, point.arrival_time_s + point.minimum_dwell_s)
-        )  # fmt: skip
+        departure = (
+            point.arrival_time_s
+            if point.departure_time_s is None
+            else (max(point.departure_time_s, point.arrival_time_s + point.minimum_dwell_s))
+        )
         stops.append(
             JourneyStop(point.id, travelled, point.arrival_time_s, departure, point.end_of_journey)
         )

@@ -227,9 +227,13 @@ class NmpcController:
         self._reference = None
 
     def solve(
-        self, *, position_m: float, speed_mps: float, applied_force_n: float,
+        self,
+        *,
+        position_m: float,
+        speed_mps: float,
+        applied_force_n: float,
         reference: NmpcReference,
-    ) -> NmpcResult:  # fmt: skip
+    ) -> NmpcResult:
         """One receding-horizon step from the measured state: position, speed and the force the
         actuators apply now; the demand starts from the last one this controller sent (the
         applied force after a reset)."""
@@ -237,9 +241,14 @@ class NmpcController:
         demand_n = applied_force_n if self._demand_n is None else self._demand_n
         state = np.array([0.0, max(speed_mps, 0.0), applied_force_n / KN, demand_n / KN])
         parameters = np.concatenate(
-            [state, reference.position_m - position_m, reference.speed_mps,
-             reference.max_speed_mps, reference.track_force_n / KN]
-        )  # fmt: skip
+            [
+                state,
+                reference.position_m - position_m,
+                reference.speed_mps,
+                reference.max_speed_mps,
+                reference.track_force_n / KN,
+            ]
+        )
         if self._jumped(reference):
             self._guess = None
         self._reference = reference
@@ -268,9 +277,13 @@ class NmpcController:
         forces_n = states[1:, 3] * KN
         self._demand_n = float(forces_n[0])
         return NmpcResult(
-            force_n=float(forces_n[0]), success=True, fallback=False, solve_time_s=elapsed,
-            predicted_speed_mps=states[1:, 1], predicted_force_n=forces_n,
-        )  # fmt: skip
+            force_n=float(forces_n[0]),
+            success=True,
+            fallback=False,
+            solve_time_s=elapsed,
+            predicted_speed_mps=states[1:, 1],
+            predicted_force_n=forces_n,
+        )
 
     def _jumped(self, reference: NmpcReference) -> bool:
         """Whether the reference or the ceiling moved by more than ``jump_mps`` against the
@@ -279,10 +292,14 @@ class NmpcController:
         if previous is None:
             return False
         jump = self.config.jump_mps
-        for new, old in ((reference.speed_mps, previous.speed_mps),
-                         (reference.max_speed_mps, previous.max_speed_mps)):  # fmt: skip
-            if np.any(np.abs(np.minimum(new[:-1], MAX_SPEED_MPS)
-                             - np.minimum(old[1:], MAX_SPEED_MPS)) > jump):  # fmt: skip
+        for new, old in (
+            (reference.speed_mps, previous.speed_mps),
+            (reference.max_speed_mps, previous.max_speed_mps),
+        ):
+            if np.any(
+                np.abs(np.minimum(new[:-1], MAX_SPEED_MPS) - np.minimum(old[1:], MAX_SPEED_MPS))
+                > jump
+            ):
                 return True
         return False
 
@@ -338,8 +355,11 @@ class NmpcController:
             mass = m.mass_kg * (1.0 + m.rotating_mass_factor)
             v = max(speed_mps, 0.0)
             resistance = m.davis_a_n + m.davis_b_n_per_mps * v + m.davis_c_n_per_mps2 * v * v
-            force = (mass * self.config.fallback_gain_per_s * (target - speed_mps)
-                     + resistance + float(reference.track_force_n[0]))  # fmt: skip
+            force = (
+                mass * self.config.fallback_gain_per_s * (target - speed_mps)
+                + resistance
+                + float(reference.track_force_n[0])
+            )
             if target <= 0.0:
                 force = min(force, 0.0) if speed_mps > 0.0 else brake
             traction = m.max_traction_force_n
@@ -352,9 +372,13 @@ class NmpcController:
             force = min(max(force, self._demand_n - step), self._demand_n + step)
         self._demand_n = force
         return NmpcResult(
-            force_n=force, success=False, fallback=True, solve_time_s=elapsed,
-            predicted_speed_mps=np.zeros(0), predicted_force_n=np.zeros(0),
-        )  # fmt: skip
+            force_n=force,
+            success=False,
+            fallback=True,
+            solve_time_s=elapsed,
+            predicted_speed_mps=np.zeros(0),
+            predicted_force_n=np.zeros(0),
+        )
 
 
 def _solver_options(config: NmpcConfig, max_iterations: int) -> dict[str, Any]:

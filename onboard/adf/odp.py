@@ -208,10 +208,12 @@ def plan_legs(
             limit = min(limit, held_under(cap_mps, CAP_MARGIN_MPS))
         try:
             segment = lspb_segment(
-                length, arrival_s - depart_s, speed_limit_mps=limit,
+                length,
+                arrival_s - depart_s,
+                speed_limit_mps=limit,
                 comfort_acceleration_mps2=comfort_acceleration_mps2,
                 max_acceleration_mps2=max_acceleration_mps2,
-            )  # fmt: skip
+            )
         except InfeasibleLegError as exc:
             raise InfeasibleLegError(f"leg {index}: {exc}") from exc
         legs.append(OdpLeg(depart_s, depart_m, segment))

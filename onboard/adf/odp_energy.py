@@ -239,11 +239,14 @@ class LegTrack:
             # The odometry interval is widest where the braking may start: sample the window.
             window_m = top * reaction_s + (top * top - low * low) / (2.0 * a)
             samples = np.linspace(max(drop_m - window_m, 0.0), drop_m, 16)
-            beyond = [track_map.distance_beyond_balise_group_m(start_chainage_m + d)
-                      for d in samples.tolist()]  # fmt: skip
+            beyond = [
+                track_map.distance_beyond_balise_group_m(start_chainage_m + d)
+                for d in samples.tolist()
+            ]
             run_m = max(drop_m if b is None else b for b in beyond)
-            room_m = np.maximum(drop_m - distances[: j + 1] - ODOMETRY_FIXED_M
-                                - ODOMETRY_SHARE * run_m, 0.0)  # fmt: skip
+            room_m = np.maximum(
+                drop_m - distances[: j + 1] - ODOMETRY_FIXED_M - ODOMETRY_SHARE * run_m, 0.0
+            )
             # v·T + (v² − low²) / 2a = room, solved for v; never under the lower limit itself.
             speeds = -a * reaction_s + np.sqrt((a * reaction_s) ** 2 + low * low + 2.0 * a * room_m)
             np.maximum(speeds, low, out=speeds)
@@ -478,10 +481,13 @@ def build_profile(
     speeds = profiles.speeds(holding_speed_mps, onset)
     times, energies = _cumulative(track, speeds)
     return ProfileLeg(
-        distances_m=track.distances_m, speeds_mps=speeds, times_s=times,
-        holding_speed_mps=holding_speed_mps, braking_onset_mps=onset,
+        distances_m=track.distances_m,
+        speeds_mps=speeds,
+        times_s=times,
+        holding_speed_mps=holding_speed_mps,
+        braking_onset_mps=onset,
         traction_energy_j=float(energies[-1]),
-    )  # fmt: skip
+    )
 
 
 def optimise_leg(
@@ -505,10 +511,15 @@ def optimise_leg(
         When even holding the highest limits the train cannot arrive in time.
     """
     track = LegTrack(
-        track_map, model, start_chainage_m=start_chainage_m, distance_m=distance_m,
-        cap_mps=cap_mps, max_acceleration_mps2=max_acceleration_mps2, braking_mps2=braking_mps2,
+        track_map,
+        model,
+        start_chainage_m=start_chainage_m,
+        distance_m=distance_m,
+        cap_mps=cap_mps,
+        max_acceleration_mps2=max_acceleration_mps2,
+        braking_mps2=braking_mps2,
         limit_braking_mps2=limit_braking_mps2,
-    )  # fmt: skip
+    )
     best: ProfileLeg | None = None
     for brake_down in (False, True) if initial_speed_mps > CRAWL_MPS else (False,):
         profiles = _Profiles(track, initial_speed_mps, brake_down=brake_down)
@@ -524,9 +535,13 @@ def optimise_leg(
 
 
 def _optimise(
-    track: LegTrack, profiles: _Profiles, duration_s: float, initial_speed_mps: float,
-    *, brake_down: bool,
-) -> ProfileLeg:  # fmt: skip
+    track: LegTrack,
+    profiles: _Profiles,
+    duration_s: float,
+    initial_speed_mps: float,
+    *,
+    brake_down: bool,
+) -> ProfileLeg:
     fastest = float(track.ceilings_mps.max())
     fastest_s = profiles.time_s(fastest, fastest)
     if fastest_s > duration_s + TIME_TOLERANCE_S:
@@ -547,15 +562,19 @@ def _optimise(
             brentq(lambda v: profiles.time_s(v, 0.0) - duration_s, slowest, fastest, xtol=1e-6)
         )
     result = minimize_scalar(
-        lambda v: profiles.energy_j(v, duration_s), bounds=(slowest, highest), method="bounded",
+        lambda v: profiles.energy_j(v, duration_s),
+        bounds=(slowest, highest),
+        method="bounded",
         options={"xatol": 5e-3},
-    )  # fmt: skip
+    )
     holding = min((float(result.x), slowest), key=lambda v: profiles.energy_j(v, duration_s))
     return build_profile(
-        track, holding_speed_mps=holding,
+        track,
+        holding_speed_mps=holding,
         braking_onset_mps=profiles.onset_mps(holding, duration_s),
-        initial_speed_mps=initial_speed_mps, brake_down=brake_down,
-    )  # fmt: skip
+        initial_speed_mps=initial_speed_mps,
+        brake_down=brake_down,
+    )
 
 
 def plan_energy_legs(
@@ -578,9 +597,13 @@ def plan_energy_legs(
         segment = leg.segment
         try:
             optimised: LegProfile = optimise_leg(
-                track_map, model, start_chainage_m=start_chainage_m + leg.start_distance_m,
-                distance_m=segment.distance_m, duration_s=segment.duration_s, cap_mps=cap_mps,
-            )  # fmt: skip
+                track_map,
+                model,
+                start_chainage_m=start_chainage_m + leg.start_distance_m,
+                distance_m=segment.distance_m,
+                duration_s=segment.duration_s,
+                cap_mps=cap_mps,
+            )
         except InfeasibleLegError:
             optimised, kept_plain = segment, kept_plain + 1
         legs.append(OdpLeg(leg.start_s, leg.start_distance_m, optimised))
@@ -621,19 +644,32 @@ def replan_from_state(
     if arrival_s is not None:
         try:
             profile = optimise_leg(
-                track_map, model, start_chainage_m=chainage, distance_m=stop_distance_m,
-                duration_s=arrival_s - now_s, cap_mps=cruise_mps, initial_speed_mps=speed_mps,
-                braking_mps2=braking_mps2, limit_braking_mps2=limit_braking_mps2,
-            )  # fmt: skip
+                track_map,
+                model,
+                start_chainage_m=chainage,
+                distance_m=stop_distance_m,
+                duration_s=arrival_s - now_s,
+                cap_mps=cruise_mps,
+                initial_speed_mps=speed_mps,
+                braking_mps2=braking_mps2,
+                limit_braking_mps2=limit_braking_mps2,
+            )
         except InfeasibleLegError:
             profile = None
     if profile is None:
         track = LegTrack(
-            track_map, model, start_chainage_m=chainage, distance_m=stop_distance_m,
-            cap_mps=cruise_mps, braking_mps2=braking_mps2, limit_braking_mps2=limit_braking_mps2,
-        )  # fmt: skip
+            track_map,
+            model,
+            start_chainage_m=chainage,
+            distance_m=stop_distance_m,
+            cap_mps=cruise_mps,
+            braking_mps2=braking_mps2,
+            limit_braking_mps2=limit_braking_mps2,
+        )
         profile = build_profile(track, holding_speed_mps=cruise_mps, initial_speed_mps=speed_mps)
     return OdpPlan(
-        [OdpLeg(now_s, distance_m, profile)], start_chainage_m=start_chainage_m,
-        track_map=track_map, cap_mps=cruise_mps,
-    )  # fmt: skip
+        [OdpLeg(now_s, distance_m, profile)],
+        start_chainage_m=start_chainage_m,
+        track_map=track_map,
+        cap_mps=cruise_mps,
+    )

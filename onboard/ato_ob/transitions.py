@@ -86,45 +86,78 @@ def _states(*states: AtoState) -> frozenset[AtoState]:
 
 _S = AtoState
 _T = Trigger
-_RUNNING = _states(_S.CONFIGURATION, _S.NOT_AVAILABLE, _S.AVAILABLE, _S.READY, _S.ENGAGED,
-                   _S.DISENGAGING)  # fmt: skip
+_RUNNING = _states(
+    _S.CONFIGURATION, _S.NOT_AVAILABLE, _S.AVAILABLE, _S.READY, _S.ENGAGED, _S.DISENGAGING
+)
 
 ATO_OB_TRANSITIONS: tuple[TransitionRule, ...] = (
     TransitionRule(number=1, sources=_RUNNING, target=_S.FAILURE, trigger=_T.ETCS_LINK_LOST),
     TransitionRule(number=2, sources=_RUNNING, target=_S.FAILURE, trigger=_T.INTERNAL_FAULT),
-    TransitionRule(number=3, sources=_states(_S.NP), target=_S.CONFIGURATION,
-                   trigger=_T.POWER_ON),
-    TransitionRule(number=4, sources=_states(_S.FAILURE), target=_S.CONFIGURATION,
-                   trigger=_T.RESET),
-    TransitionRule(number=5, sources=_states(_S.CONFIGURATION), target=_S.NOT_AVAILABLE,
-                   trigger=_T.CONFIGURED),
-    TransitionRule(number=6, sources=_states(_S.ENGAGED, _S.DISENGAGING),
-                   target=_S.NOT_AVAILABLE, trigger=_T.DISENGAGE_REQUESTED),
-    TransitionRule(number=7, sources=_states(_S.ENGAGED), target=_S.NOT_AVAILABLE,
-                   trigger=_T.END_OF_JOURNEY),
-    TransitionRule(number=8, sources=_states(_S.ENGAGED), target=_S.AVAILABLE,
-                   trigger=_T.FALLBACK_STOP_COMPLETED),
-    TransitionRule(number=9, sources=_states(_S.ENGAGED), target=_S.AVAILABLE,
-                   trigger=_T.STOPPED_AT_STOPPING_POINT),
-    TransitionRule(number=10, sources=_states(_S.ENGAGED), target=_S.DISENGAGING,
-                   trigger=_T.NOT_OPERATIONAL),
-    TransitionRule(number=11, sources=_states(_S.DISENGAGING), target=_S.ENGAGED,
-                   trigger=_T.CONDITIONS_RECOVERED),
-    TransitionRule(number=12, sources=_states(_S.DISENGAGING), target=_S.NOT_AVAILABLE,
-                   trigger=_T.BRAKED_TO_STANDSTILL),
-    TransitionRule(number=13, sources=_states(_S.AVAILABLE, _S.READY), target=_S.NOT_AVAILABLE,
-                   trigger=_T.NOT_OPERATIONAL),
-    TransitionRule(number=14, sources=_states(_S.READY), target=_S.AVAILABLE,
-                   trigger=_T.NOT_ENGAGEABLE),
-    TransitionRule(number=15, sources=_states(_S.NOT_AVAILABLE), target=_S.AVAILABLE,
-                   trigger=_T.OPERATIONAL),
-    TransitionRule(number=16, sources=_states(_S.AVAILABLE), target=_S.READY,
-                   trigger=_T.ENGAGEABLE),
-    TransitionRule(number=17, sources=_states(_S.READY), target=_S.ENGAGED,
-                   trigger=_T.ENGAGE_REQUESTED),
-    TransitionRule(number=18, sources=_states(_S.READY), target=_S.ENGAGED,
-                   trigger=_T.AUTOMATIC_REENGAGEMENT),
-)  # fmt: skip
+    TransitionRule(number=3, sources=_states(_S.NP), target=_S.CONFIGURATION, trigger=_T.POWER_ON),
+    TransitionRule(
+        number=4, sources=_states(_S.FAILURE), target=_S.CONFIGURATION, trigger=_T.RESET
+    ),
+    TransitionRule(
+        number=5, sources=_states(_S.CONFIGURATION), target=_S.NOT_AVAILABLE, trigger=_T.CONFIGURED
+    ),
+    TransitionRule(
+        number=6,
+        sources=_states(_S.ENGAGED, _S.DISENGAGING),
+        target=_S.NOT_AVAILABLE,
+        trigger=_T.DISENGAGE_REQUESTED,
+    ),
+    TransitionRule(
+        number=7, sources=_states(_S.ENGAGED), target=_S.NOT_AVAILABLE, trigger=_T.END_OF_JOURNEY
+    ),
+    TransitionRule(
+        number=8,
+        sources=_states(_S.ENGAGED),
+        target=_S.AVAILABLE,
+        trigger=_T.FALLBACK_STOP_COMPLETED,
+    ),
+    TransitionRule(
+        number=9,
+        sources=_states(_S.ENGAGED),
+        target=_S.AVAILABLE,
+        trigger=_T.STOPPED_AT_STOPPING_POINT,
+    ),
+    TransitionRule(
+        number=10, sources=_states(_S.ENGAGED), target=_S.DISENGAGING, trigger=_T.NOT_OPERATIONAL
+    ),
+    TransitionRule(
+        number=11,
+        sources=_states(_S.DISENGAGING),
+        target=_S.ENGAGED,
+        trigger=_T.CONDITIONS_RECOVERED,
+    ),
+    TransitionRule(
+        number=12,
+        sources=_states(_S.DISENGAGING),
+        target=_S.NOT_AVAILABLE,
+        trigger=_T.BRAKED_TO_STANDSTILL,
+    ),
+    TransitionRule(
+        number=13,
+        sources=_states(_S.AVAILABLE, _S.READY),
+        target=_S.NOT_AVAILABLE,
+        trigger=_T.NOT_OPERATIONAL,
+    ),
+    TransitionRule(
+        number=14, sources=_states(_S.READY), target=_S.AVAILABLE, trigger=_T.NOT_ENGAGEABLE
+    ),
+    TransitionRule(
+        number=15, sources=_states(_S.NOT_AVAILABLE), target=_S.AVAILABLE, trigger=_T.OPERATIONAL
+    ),
+    TransitionRule(
+        number=16, sources=_states(_S.AVAILABLE), target=_S.READY, trigger=_T.ENGAGEABLE
+    ),
+    TransitionRule(
+        number=17, sources=_states(_S.READY), target=_S.ENGAGED, trigger=_T.ENGAGE_REQUESTED
+    ),
+    TransitionRule(
+        number=18, sources=_states(_S.READY), target=_S.ENGAGED, trigger=_T.AUTOMATIC_REENGAGEMENT
+    ),
+)
 """The transition table (see the module's docstring), in priority order."""
 
 

@@ -130,9 +130,12 @@ class VitalLink:
         pending = self._pending[kind]
         if not pending.confirmed:
             self._pending[kind] = PendingRequest(
-                kind=kind, number=number, raised_s=pending.raised_s,
-                deadline_s=pending.deadline_s, confirmed=True,
-            )  # fmt: skip
+                kind=kind,
+                number=number,
+                raised_s=pending.raised_s,
+                deadline_s=pending.deadline_s,
+                confirmed=True,
+            )
         return None
 
     def step(self, now_s: float, *, failed: bool) -> None:
@@ -161,9 +164,11 @@ class VitalLink:
                 if kind is OperatorRequestKind.VIGILANCE:
                     deadline = request.sent_s + self.vigilance_timeout_s
                 raised = PendingRequest(
-                    kind=kind, number=asked.sequence_number, raised_s=request.sent_s,
+                    kind=kind,
+                    number=asked.sequence_number,
+                    raised_s=request.sent_s,
                     deadline_s=deadline,
-                )  # fmt: skip
+                )
                 self._pending[kind] = raised
                 self._raised.append(raised)
 

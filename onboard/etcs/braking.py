@@ -316,8 +316,14 @@ class TargetLimits:
     def limits(self) -> tuple[Limit, ...]:
         """The limits this target has."""
         if self.target.ebd_based:
-            return (Limit.EBD, Limit.EBI, Limit.SBI2, Limit.WARNING, Limit.PERMITTED,
-                    Limit.INDICATION)  # fmt: skip
+            return (
+                Limit.EBD,
+                Limit.EBI,
+                Limit.SBI2,
+                Limit.WARNING,
+                Limit.PERMITTED,
+                Limit.INDICATION,
+            )
         return Limit.SBD, Limit.SBI1, Limit.WARNING, Limit.PERMITTED, Limit.INDICATION
 
     def _emergency_intervention_m(self, speed_mps: float, acceleration_mps2: float) -> float:
@@ -451,7 +457,7 @@ class TargetLimits:
 
         else:
             v_target = self.target.speed_mps
-            a_est1 = 0.0 if 0.0 > acceleration_mps2 else acceleration_mps2
+            a_est1 = 0.0 if acceleration_mps2 < 0.0 else acceleration_mps2
             a_est2 = self._a_est2_max if self._a_est2_max < a_est1 else a_est1
             t_traction, t_berem, t_bs2 = t.t_traction_s, t.t_berem_s, t.t_bs2_s
             v_delta1 = a_est1 * t_traction
@@ -466,7 +472,7 @@ class TargetLimits:
                     v_delta0 = _URA_MIN_MPS
                 else:
                     ura = _URA_MIN_MPS + _URA_SLOPE * (v - _URA_FROM_MPS)
-                    v_delta0 = _URA_MAX_MPS if _URA_MAX_MPS < ura else ura
+                    v_delta0 = _URA_MAX_MPS if ura > _URA_MAX_MPS else ura
                 fastest = v + v_delta0 + v_delta1
                 fastest = v_target if v_target > fastest else fastest
                 traction = v + v_delta0 + half_delta1

@@ -143,7 +143,7 @@ class OdometerParameters:
                 raise TrainDataError(f"odometer {field.name} must be finite and ≥ 0")
         if self.wheel_diameter_m <= 0.0 or self.pulses_per_revolution < 1:
             raise TrainDataError("the odometer needs a wheel diameter > 0 and ≥ 1 pulse per turn")
-        if not (0.0 < self.speed_window_s and 0.0 < self.acceleration_window_s):
+        if not (self.speed_window_s > 0.0 and self.acceleration_window_s > 0.0):
             raise TrainDataError("the odometer's windows must be > 0 s")
         if self.history_s < max(self.speed_window_s, self.acceleration_window_s):
             raise TrainDataError("the odometer's history must cover its windows")
@@ -297,10 +297,18 @@ class Odometer:
         self._last_criterion_s = -math.inf
         self._low_mps = self._high_mps = 0.0
         self.output = OdometerOutput(
-            time_s=start_s, distance_m=0.0, speed_mps=0.0, acceleration_mps2=0.0,
-            front_axle_speed_mps=0.0, rear_axle_speed_mps=0.0, pulses_front=0, pulses_rear=0,
-            adhesion=WheelAdhesion.ROLLING, slip_slide_over_m=0.0, slip_slide_under_m=0.0,
-        )  # fmt: skip
+            time_s=start_s,
+            distance_m=0.0,
+            speed_mps=0.0,
+            acceleration_mps2=0.0,
+            front_axle_speed_mps=0.0,
+            rear_axle_speed_mps=0.0,
+            pulses_front=0,
+            pulses_rear=0,
+            adhesion=WheelAdhesion.ROLLING,
+            slip_slide_over_m=0.0,
+            slip_slide_under_m=0.0,
+        )
 
     def update(self, readings: Iterable[WheelReading]) -> OdometerOutput:
         """Count the readings since the last update (in time order) and estimate.
@@ -405,9 +413,17 @@ class Odometer:
             counted = front - previous.pulses_front + rear - previous.pulses_rear
             distance_m = previous.distance_m + counted / (2.0 * self._ppm)
         sample = _Sample(
-            time_s, front, rear, front_mps, rear_mps, distance_m, speed_mps,
-            previous.over_m + over_m, previous.under_m + under_m, full_window,
-        )  # fmt: skip
+            time_s,
+            front,
+            rear,
+            front_mps,
+            rear_mps,
+            distance_m,
+            speed_mps,
+            previous.over_m + over_m,
+            previous.under_m + under_m,
+            full_window,
+        )
         accel_base = self._base(time_s - p.acceleration_window_s)
         self._append(sample, (speed_mps - accel_base.speed_mps) / (time_s - accel_base.time_s))
 

@@ -226,10 +226,13 @@ class SupervisionResult:
         speed = self.ceiling_intervention_mps
         for limits, distance_m, acceleration_mps2 in self.intervention_targets:
             limit = Limit.EBI if Limit.EBI in limits.limits else Limit.SBI1
-            speed = min(speed, max(
-                limits.target.speed_mps,
-                limits.speed_mps(limit, distance_m, acceleration_mps2=acceleration_mps2),
-            ))  # fmt: skip
+            speed = min(
+                speed,
+                max(
+                    limits.target.speed_mps,
+                    limits.speed_mps(limit, distance_m, acceleration_mps2=acceleration_mps2),
+                ),
+            )
         return speed
 
 

@@ -168,14 +168,24 @@ class SensorNoise:
         """Every error zero: the truth, sampled (the odometer still counts nothing finer than
         nothing: quantisation off)."""
         return cls(
-            accelerometer_noise_mps2=0.0, accelerometer_bias_sigma_mps2=0.0,
-            accelerometer_bias_walk_mps2_per_sqrt_s=0.0, accelerometer_scale_sigma=0.0,
-            gyro_noise_radps=0.0, gyro_bias_sigma_radps=0.0, gyro_bias_walk_radps_per_sqrt_s=0.0,
-            gyro_scale_sigma=0.0, odometer_sigma_mps=0.0, odometer_scale_sigma=0.0,
-            odometer_count_m=0.0, gps_horizontal_sigma_m=0.0, gps_vertical_sigma_m=0.0,
-            gps_correlated_horizontal_sigma_m=0.0, gps_correlated_vertical_sigma_m=0.0,
-            gps_latency_s=0.0, gps_multipath_rate_per_s=0.0,
-        )  # fmt: skip
+            accelerometer_noise_mps2=0.0,
+            accelerometer_bias_sigma_mps2=0.0,
+            accelerometer_bias_walk_mps2_per_sqrt_s=0.0,
+            accelerometer_scale_sigma=0.0,
+            gyro_noise_radps=0.0,
+            gyro_bias_sigma_radps=0.0,
+            gyro_bias_walk_radps_per_sqrt_s=0.0,
+            gyro_scale_sigma=0.0,
+            odometer_sigma_mps=0.0,
+            odometer_scale_sigma=0.0,
+            odometer_count_m=0.0,
+            gps_horizontal_sigma_m=0.0,
+            gps_vertical_sigma_m=0.0,
+            gps_correlated_horizontal_sigma_m=0.0,
+            gps_correlated_vertical_sigma_m=0.0,
+            gps_latency_s=0.0,
+            gps_multipath_rate_per_s=0.0,
+        )
 
 
 @dataclass(frozen=True, kw_only=True)

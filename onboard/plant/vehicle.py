@@ -76,8 +76,12 @@ class BogiePlant:
                 brake_pressure_front_pa=max(commands.brake_pressure_front_pa, pipe_pa),
                 brake_pressure_rear_pa=max(commands.brake_pressure_rear_pa, pipe_pa),
             )
-        self.model.step(step.dt_s, commands, gradient_permille=step.gradient_permille,
-                        adhesion_factor=self.adhesion_factor)  # fmt: skip
+        self.model.step(
+            step.dt_s,
+            commands,
+            gradient_permille=step.gradient_permille,
+            adhesion_factor=self.adhesion_factor,
+        )
         truth = self.truth = self.model.truth()
         self.powertrain.step(
             step.dt_s,
@@ -101,14 +105,17 @@ class BogiePlant:
         powertrain = self.powertrain
         bms = powertrain.bms_status()
         return PowertrainReading(
-            time_s=self.truth.time_s, soc=bms.soc, battery_voltage_v=bms.voltage_v,
-            battery_current_a=bms.current_a, max_discharge_power_w=bms.max_discharge_power_w,
+            time_s=self.truth.time_s,
+            soc=bms.soc,
+            battery_voltage_v=bms.voltage_v,
+            battery_current_a=bms.current_a,
+            max_discharge_power_w=bms.max_discharge_power_w,
             max_charge_power_w=bms.max_charge_power_w,
             continuous_current_a=bms.continuous_current_a,
             range_extender_power_w=powertrain.range_extender.power_w,
             motor_temperature_front_c=powertrain.thermal_front.temperature_c,
             motor_temperature_rear_c=powertrain.thermal_rear.temperature_c,
-        )  # fmt: skip
+        )
 
 
 Dynamics = PointMassModel | BogiePlant
@@ -120,9 +127,11 @@ def truth_sample(dynamics: Dynamics, time_s: float) -> TruthSample:
     if isinstance(dynamics, BogiePlant):
         return truth_from_bogie(dynamics.truth)
     return TruthSample(
-        time_s=time_s, position_m=dynamics.position_m, speed_mps=dynamics.speed_mps,
+        time_s=time_s,
+        position_m=dynamics.position_m,
+        speed_mps=dynamics.speed_mps,
         acceleration_mps2=dynamics.acceleration_mps2,
-    )  # fmt: skip
+    )
 
 
 def drive_reading(dynamics: Dynamics, time_s: float) -> DriveReading:
@@ -207,9 +216,11 @@ class SimulatedVehicle:
     @property
     def position_m(self) -> float:
         """True front end [m], unwrapped on a ring."""
-        return self.dynamics.truth.position_m if isinstance(self.dynamics, BogiePlant) else (
-            self.dynamics.position_m
-        )  # fmt: skip
+        return (
+            self.dynamics.truth.position_m
+            if isinstance(self.dynamics, BogiePlant)
+            else (self.dynamics.position_m)
+        )
 
     @property
     def speed_mps(self) -> float:
@@ -267,9 +278,12 @@ class SimulatedVehicle:
         VCU's commands for the bogie) and the EB's share (0 to 1); then the sensors sample."""
         position = self.position_m
         track_map = self.track_map
-        step = _Step(dt_s=dt_s, gradient_permille=track_map.gradient_permille(position),
-                     curve_radius_m=track_map.curve_radius_m(position),
-                     emergency_brake=emergency_brake)  # fmt: skip
+        step = _Step(
+            dt_s=dt_s,
+            gradient_permille=track_map.gradient_permille(position),
+            curve_radius_m=track_map.curve_radius_m(position),
+            emergency_brake=emergency_brake,
+        )
         dynamics = self.dynamics
         if isinstance(dynamics, BogiePlant):
             if not isinstance(demand, ActuatorCommands):
@@ -278,9 +292,13 @@ class SimulatedVehicle:
         else:
             if isinstance(demand, ActuatorCommands):
                 raise TypeError("the point-mass model is driven by a force demand")
-            dynamics.step(dt_s, demand, gradient_permille=step.gradient_permille,
-                          curve_radius_m=step.curve_radius_m,
-                          emergency_brake=emergency_brake)  # fmt: skip
+            dynamics.step(
+                dt_s,
+                demand,
+                gradient_permille=step.gradient_permille,
+                curve_radius_m=step.curve_radius_m,
+                emergency_brake=emergency_brake,
+            )
         self.time_s = now_s
         self._sample()
 

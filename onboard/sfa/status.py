@@ -50,10 +50,7 @@ def plausible(packet: InputPacket, line_length_m: float) -> bool:
         for value in values[:3]:
             if not abs(value) <= MAX_ACCELERATION_MPS2:
                 return False
-        for value in values[3:]:
-            if not abs(value) <= MAX_ANGULAR_RATE_RADPS:
-                return False
-        return True
+        return all(abs(value) <= MAX_ANGULAR_RATE_RADPS for value in values[3:])
     if sensor_type is SensorType.ODOMETER:
         return abs(values[0]) <= MAX_SPEED_MPS and 0.0 <= values[1] <= MAX_SPEED_SIGMA_MPS
     if sensor_type is SensorType.GPS:

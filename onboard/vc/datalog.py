@@ -56,10 +56,17 @@ class DatalogRecord:
 
     def to_json(self) -> str:
         return json.dumps(
-            {"seq": self.seq, "time_s": self.time_s, "source": self.source, "kind": self.kind,
-             "payload": dict(self.payload)},
-            separators=(",", ":"), sort_keys=True, ensure_ascii=False,
-        )  # fmt: skip
+            {
+                "seq": self.seq,
+                "time_s": self.time_s,
+                "source": self.source,
+                "kind": self.kind,
+                "payload": dict(self.payload),
+            },
+            separators=(",", ":"),
+            sort_keys=True,
+            ensure_ascii=False,
+        )
 
     @classmethod
     def from_json(cls, line: str) -> DatalogRecord:
@@ -188,9 +195,11 @@ class DatalogRecorder:
         self._seen_b, self._seen_c = len(self.vc.task_b.events), len(self.vc.task_c.events)
         for event in sorted(events, key=lambda e: e.time_s):
             self.datalog.append(
-                event.time_s, f"vc.{event.task}", event.kind.value,
+                event.time_s,
+                f"vc.{event.task}",
+                event.kind.value,
                 {"detail": event.detail, "evidence_s": event.evidence_s},
-            )  # fmt: skip
+            )
         request = self.vc.task_a.last_request
         if request is not None and request.sent_s != self._last_request_s:
             self._last_request_s = request.sent_s
@@ -203,7 +212,9 @@ class DatalogRecorder:
         if self.pair is not None:
             for pair_event in self.pair.events[self._seen_pair :]:
                 self.datalog.append(
-                    pair_event.time_s, "vc.2oo2", pair_event.kind.value,
+                    pair_event.time_s,
+                    "vc.2oo2",
+                    pair_event.kind.value,
                     {"replica": pair_event.replica, "detail": pair_event.detail},
-                )  # fmt: skip
+                )
             self._seen_pair = len(self.pair.events)

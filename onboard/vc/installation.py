@@ -111,23 +111,30 @@ class VcInstallation:
             self.pair = TwoOutOfTwo(
                 (self.boards[0].vc, self.boards[1].vc),
                 valves=EmergencyBrakeValves(start_s=start_s, faults=self.faults.pipe),
-                config=redundancy, faults=self.faults.replicas, start_s=start_s,
-            )  # fmt: skip
+                config=redundancy,
+                faults=self.faults.replicas,
+                start_s=start_s,
+            )
         self._balises: list[TelegramHeader] = []
 
     def _board(self, index: int, start_s: float) -> _Board:
         faults = self.faults
         hardware = VcHardware.emulated(
-            link_faults=faults.link, pipe_faults=faults.pipe, relay_faults=faults.relay,
+            link_faults=faults.link,
+            pipe_faults=faults.pipe,
+            relay_faults=faults.relay,
             start_s=start_s,
-        )  # fmt: skip
+        )
         tachometer = TachometerBoard(
             metres_per_pulse=self.config.metres_per_pulse,
-            period_s=self.config.tachometer_period_s, start_s=start_s,
-            faults=faults.tachometer, seed=index,
-        )  # fmt: skip
-        return _Board(hardware, VitalControl(hardware, config=self.config, start_s=start_s),
-                      tachometer)  # fmt: skip
+            period_s=self.config.tachometer_period_s,
+            start_s=start_s,
+            faults=faults.tachometer,
+            seed=index,
+        )
+        return _Board(
+            hardware, VitalControl(hardware, config=self.config, start_s=start_s), tachometer
+        )
 
     # -- wiring --------------------------------------------------------------------------------
 
@@ -143,8 +150,9 @@ class VcInstallation:
 
     def register(self, executive: Executive, *, phase_s: float = 0.0) -> None:
         """Add ``vc.io`` and the VC's tasks (and the pair's voter) to ``executive``."""
-        executive.add_task("vc.io", self._io, period_s=IO_PERIOD_S, phase_s=phase_s,
-                           priority=IO_PRIORITY)  # fmt: skip
+        executive.add_task(
+            "vc.io", self._io, period_s=IO_PERIOD_S, phase_s=phase_s, priority=IO_PRIORITY
+        )
         if self.pair is not None:
             self.pair.register(executive, phase_s=phase_s)
         else:

@@ -106,8 +106,14 @@ class TachometerOdometry:
         if now_s > deadline_s + TIME_TOLERANCE_S:
             self._bad(deadline_s)
         efficient = self._not_efficient_since_s is None
-        key = (efficient, self._speed_mps, self._position_m, self._zero_frames,
-               self._speed_updated_s, self._not_efficient_since_s)  # fmt: skip
+        key = (
+            efficient,
+            self._speed_mps,
+            self._position_m,
+            self._zero_frames,
+            self._speed_updated_s,
+            self._not_efficient_since_s,
+        )
         if key == self._estimated_from and self._estimate is not None:
             # Task B asks every 2 ms, a frame comes every 80 ms: the same state, the same
             # (frozen) estimate.

@@ -228,11 +228,15 @@ class TwoOutOfTwo:
         for index, replica in enumerate(self.replicas):
             config = replica.config
             tasks: tuple[tuple[str, Callable[[float], object], float, int], ...] = (
-                ("B", self._kicking(index, replica.task_b.step), config.task_b_period_s,
-                 TASK_B_PRIORITY),
+                (
+                    "B",
+                    self._kicking(index, replica.task_b.step),
+                    config.task_b_period_s,
+                    TASK_B_PRIORITY,
+                ),
                 ("C", replica.task_c.step, config.task_c_period_s, TASK_C_PRIORITY),
                 ("A", replica.task_a.step, config.task_a_period_s, TASK_A_PRIORITY),
-            )  # fmt: skip
+            )
             for letter, step, period_s, priority in tasks:
                 executive.add_task(
                     f"vc{index}.{letter}",

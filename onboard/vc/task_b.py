@@ -202,9 +202,10 @@ class TaskB:
 
     def _check_deadlines(self, now_s: float) -> None:
         overdue = [
-            (key, outstanding) for key, outstanding in self._outstanding.items()
+            (key, outstanding)
+            for key, outstanding in self._outstanding.items()
             if now_s > outstanding.deadline_s + TIME_TOLERANCE_S
-        ]  # fmt: skip
+        ]
         for key, outstanding in overdue:
             del self._outstanding[key]
             self._decay(

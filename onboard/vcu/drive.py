@@ -71,9 +71,12 @@ class VcuDrive:
     ) -> ActuatorCommands:
         """Advance by ``dt_s`` [s]: the actuator commands until the next step."""
         self.inputs = inputs_from_readings(
-            force_demand_n, fused_speed_mps=fused_speed_mps, wheels=wheels,
-            powertrain=powertrain, wheel_radius_m=self.parameters.wheel_radius_m,
-        )  # fmt: skip
+            force_demand_n,
+            fused_speed_mps=fused_speed_mps,
+            wheels=wheels,
+            powertrain=powertrain,
+            wheel_radius_m=self.parameters.wheel_radius_m,
+        )
         return self.unit.step(dt_s, self.inputs)
 
     @property

@@ -17,13 +17,17 @@ SCENARIOS = Path(__file__).resolve().parents[2] / "deploy" / "scenarios"
 
 def _kpis(factor: float, *, passed: bool = True, control_share: float = 0.3) -> dict[str, Any]:
     return {
-        "passed": passed, "sim_time_s": 1000.0, "wall_time_s": 1000.0 / factor,
+        "passed": passed,
+        "sim_time_s": 1000.0,
+        "wall_time_s": 1000.0 / factor,
         "real_time_factor": factor,
-        "wall_time_breakdown": {"tasks": {
-            "sfa": {"mean_us": 40.0 + factor, "share": 0.25},
-            "control": {"mean_us": 900.0 + factor, "share": control_share},
-        }},
-    }  # fmt: skip
+        "wall_time_breakdown": {
+            "tasks": {
+                "sfa": {"mean_us": 40.0 + factor, "share": 0.25},
+                "control": {"mean_us": 900.0 + factor, "share": control_share},
+            }
+        },
+    }
 
 
 def test_summarise_gives_median_worst_best_and_counts_what_did_not_pass_or_run() -> None:
@@ -38,7 +42,8 @@ def test_summarise_gives_median_worst_best_and_counts_what_did_not_pass_or_run()
     assert summary.factor_median == 55.0
     assert (summary.factor_worst, summary.factor_best) == (40.0, 60.0)
     assert summary.wall_median_s == pytest.approx(1000.0 / 55.0)
-    assert summary.target == 50.0 and summary.meets_target is True
+    assert summary.target == 50.0
+    assert summary.meets_target is True
     assert list(summary.task_mean_us) == ["control", "sfa"]  # the costliest share first
     assert summary.task_mean_us["sfa"] == 95.0
     slower = summarise("bologna-ring", [RunSample("bologna-ring", 0, _kpis(37.0))])
@@ -47,7 +52,8 @@ def test_summarise_gives_median_worst_best_and_counts_what_did_not_pass_or_run()
 
 def test_a_scenario_with_no_run_has_no_figures_and_meets_no_target() -> None:
     summary = summarise("milano-bologna-low-soc", [RunSample("x", 2, None, "boom")])
-    assert summary.factor_median is None and summary.meets_target is None
+    assert summary.factor_median is None
+    assert summary.meets_target is None
     assert summary.task_mean_us == {}
 
 
@@ -58,18 +64,25 @@ def test_run_once_reads_a_real_run_and_reports_its_failed_expectations(tmp_path:
     short.write_text(re.sub(r"(?m)^duration_s = .*$", "duration_s = 30.0", text, count=1))
     sample = run_once(str(short), timeout_s=300.0)
     assert sample.kpis is not None, sample.error
-    assert sample.exit_code == 1 and sample.kpis["passed"] is False
+    assert sample.exit_code == 1
+    assert sample.kpis["passed"] is False
     assert sample.kpis["sim_time_s"] == pytest.approx(30.0, abs=0.5)
-    assert sample.real_time_factor is not None and sample.real_time_factor > 0
+    assert sample.real_time_factor is not None
+    assert sample.real_time_factor > 0
     assert "control" in sample.kpis["wall_time_breakdown"]["tasks"]
     missing = run_once(str(tmp_path / "no-such.toml"), timeout_s=120.0)
-    assert missing.kpis is None and missing.exit_code == 2 and missing.error
+    assert missing.kpis is None
+    assert missing.exit_code == 2
+    assert missing.error
 
 
 def test_bench_run_prints_each_run_and_the_table() -> None:
     console = Console(record=True, width=200)
     [summary] = bench_run(["vc-B"], runs=2, console=console)
-    assert summary.runs == 2 and summary.passed == 2 and summary.failed_to_run == 0
+    assert summary.runs == 2
+    assert summary.passed == 2
+    assert summary.failed_to_run == 0
     text = console.export_text()
-    assert "vc-B run 1/2: exit 0" in text and "vc-B run 2/2: exit 0" in text
+    assert "vc-B run 1/2: exit 0" in text
+    assert "vc-B run 2/2: exit 0" in text
     assert "factor median" in text

@@ -34,9 +34,10 @@ def test_bench_sfa_prints_every_figure_beside_its_target(
         "throughput over UDP",
         "fuzz",
     ):
-        assert text in out, text  # fmt: skip
+        assert text in out, text
     rows = figures["accuracy"]
-    assert isinstance(rows, list) and len(rows) == 14
+    assert isinstance(rows, list)
+    assert len(rows) == 14
     assert all(row.ok is not False for row in rows), [r for r in rows if r.ok is False]
     assert float(figures["udp_datagrams_per_s"]) > 0  # type: ignore[arg-type]
 
@@ -52,7 +53,8 @@ def test_record_then_replay_with_chosen_sensors(tmp_path: Path) -> None:
     assert recorded.exit_code == 0, recorded.output
     replayed = runner.invoke(app, ["sfa", "replay", str(path), "--sensors", "imu,odometer"])
     assert replayed.exit_code == 0, replayed.output
-    assert "position error RMS" in replayed.output and "gps" not in replayed.output.split(":")[0]
+    assert "position error RMS" in replayed.output
+    assert "gps" not in replayed.output.split(":")[0]
     wrong = runner.invoke(app, ["sfa", "replay", str(path), "--sensors", "sonar"])
     assert wrong.exit_code != 0
     missing = runner.invoke(app, ["sfa", "replay", str(tmp_path / "none.npz")])
@@ -72,10 +74,20 @@ def test_ato_sfa_listen_process_exits_zero_on_stop() -> None:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     listener = subprocess.Popen(
-        [sys.executable, "-m", "deploy", "sfa", "listen", "--input", f"127.0.0.1:{port}",
-         "--obcu", "127.0.0.1:9"],
-        stderr=subprocess.PIPE, text=True,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "deploy",
+            "sfa",
+            "listen",
+            "--input",
+            f"127.0.0.1:{port}",
+            "--obcu",
+            "127.0.0.1:9",
+        ],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         # Wait for the listener's banner, then emulate a short drive at full speed.
         assert listener.stderr is not None
@@ -87,7 +99,8 @@ def test_ato_sfa_listen_process_exits_zero_on_stop() -> None:
         assert sent.exit_code == 0, sent.output
         assert listener.wait(timeout=60) == 0
         summary = listener.stderr.read()
-        assert "processed" in summary and "'stop': 1" in summary
+        assert "processed" in summary
+        assert "'stop': 1" in summary
     finally:
         if listener.poll() is None:
             listener.kill()

@@ -16,9 +16,11 @@ def test_measure_round_trips_against_the_real_node(
 ) -> None:
     trackside, onboard = zenoh_pair
     node = OnboardNode(
-        OnboardSettings(vehicle_id=VEHICLE), session=onboard, clock=SimClock(),
+        OnboardSettings(vehicle_id=VEHICLE),
+        session=onboard,
+        clock=SimClock(),
         track_map=TrackMap(load_seed_line("bologna-ring")),
-    )  # fmt: skip
+    )
     try:
         assert wait_for(lambda: _answers(trackside))
         samples = measure_round_trips(trackside, count=50, warmup=5)

@@ -52,10 +52,12 @@ def console_settings(
 ) -> Settings:
     """The console tests' trackside: a SQLite file in ``directory``, the test's router."""
     return Settings(
-        database_url=f"sqlite:///{directory / 'ts.db'}", zenoh_connect=(router_endpoint,),
-        admin_user=ADMIN[0], admin_password=ADMIN[1],  # type: ignore[arg-type]
+        database_url=f"sqlite:///{directory / 'ts.db'}",
+        zenoh_connect=(router_endpoint,),
+        admin_user=ADMIN[0],
+        admin_password=ADMIN[1],  # type: ignore[arg-type]
         simulated_operators=simulated_operators,
-    )  # fmt: skip
+    )
 
 
 @contextmanager

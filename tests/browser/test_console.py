@@ -52,15 +52,19 @@ def running_urv1(router_endpoint: str) -> Iterator[None]:
     """URV1 in real time at 5×, in remote driving at 30 km/h (once its EB is rearmed)."""
     with open_session(ZenohSettings(connect=(router_endpoint,))) as session:
         node = OnboardNode(
-            OnboardSettings(vehicle_id="URV1"), session=session, clock=RealTimeClock(5.0),
+            OnboardSettings(vehicle_id="URV1"),
+            session=session,
+            clock=RealTimeClock(5.0),
             track_map=TrackMap(load_seed_line("bologna-ring")),
-        )  # fmt: skip
+        )
         runner = threading.Thread(target=node.run, daemon=True)
         runner.start()
         command = m.Command(
-            vehicle_id="URV1", command_id=1, issued_by="browser-test",
+            vehicle_id="URV1",
+            command_id=1,
+            issued_by="browser-test",
             body=m.RemoteDrivingTargetCommand(target_speed_mps=30 / 3.6),
-        )  # fmt: skip
+        )
         assert wait_for(lambda: _accepted(session, command), 5.0)
         yield
         node.stop()

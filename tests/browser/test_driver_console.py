@@ -57,9 +57,11 @@ def urv1(router_endpoint: str) -> Iterator[Vehicle]:
     test powers it up once the page is there (a browser may take seconds to start)."""
     with open_session(ZenohSettings(connect=(router_endpoint,))) as session:
         node = OnboardNode(
-            OnboardSettings(vehicle_id="URV1", vc_config=CONSOLE_VC), session=session,
-            clock=RealTimeClock(SPEED_UP), track_map=TrackMap(load_seed_line("bologna-ring")),
-        )  # fmt: skip
+            OnboardSettings(vehicle_id="URV1", vc_config=CONSOLE_VC),
+            session=session,
+            clock=RealTimeClock(SPEED_UP),
+            track_map=TrackMap(load_seed_line("bologna-ring")),
+        )
         vehicle = Vehicle(node, threading.Thread(target=node.run, daemon=True))
         yield vehicle
         node.stop()
@@ -92,12 +94,15 @@ def _create_journey(base_url: str, start_m: float) -> None:
     """The journey of the ``bologna-ring`` scenario (seed 000's field test), stored under the
     name ``bologna-ring`` from where the train stands (what the planner does through REST)."""
     journey = load_scenario("bologna-ring").journey
-    assert journey is not None and journey.max_speed_kmh is not None
+    assert journey is not None
+    assert journey.max_speed_kmh is not None
     body = {
-        "id": "bologna-ring", "line_id": "bologna-ring", "start_position_m": start_m,
+        "id": "bologna-ring",
+        "line_id": "bologna-ring",
+        "start_position_m": start_m,
         "max_speed_mps": journey.max_speed_kmh / 3.6,
         "timing_points": [point.model_dump(mode="json") for point in journey.timing_points],
-    }  # fmt: skip
+    }
     with httpx.Client(base_url=base_url) as client:
         login = client.post("/api/v1/auth/token", data={"username": ADMIN[0], "password": ADMIN[1]})
         headers = {"Authorization": f"Bearer {login.json()['access_token']}"}
@@ -181,8 +186,9 @@ def test_driver_console_drives_urv1_through_the_field_sequence(
     page.wait_for_function(
         "(floor) => { const g = document.querySelector('#chart-time');"
         " const y = g && g.data ? g.data[0].y : []; return y.length && y[y.length - 1] > floor; }",
-        arg=before + 5.0, timeout=WAIT_MS,
-    )  # fmt: skip
+        arg=before + 5.0,
+        timeout=WAIT_MS,
+    )
     assert max(_chart_speeds_kmh(page)) > before + 5.0
     artefacts.screenshot(page, "engaged-speed-rising")
 

@@ -23,14 +23,15 @@ from deploy.scenario.campaign import (
 
 def test_variations_parse_and_set_a_field_by_its_path() -> None:
     variation = parse_variation("faults.0.at_s=90,110.5")
-    assert variation.path == "faults.0.at_s" and variation.values == (90, 110.5)
+    assert variation.path == "faults.0.at_s"
+    assert variation.values == (90, 110.5)
     spec = apply_setting(load_scenario("ma-shortened"), [("faults.0.at_s", 90)])
     assert spec.faults[0].at_s == 90.0  # type: ignore[union-attr]
     with pytest.raises(ValueError, match="names nothing"):
         apply_setting(load_scenario("vc-A"), [("faults.0.at_s", 90)])
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="greater than or equal to 0"):
         apply_setting(load_scenario("ma-shortened"), [("faults.0.at_s", -5)])
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="KEY=V1,V2"):
         parse_variation("no-equals-sign")
 
 
@@ -41,14 +42,20 @@ def test_the_matrix_is_the_product_of_scenarios_seeds_and_variations() -> None:
 
 
 def test_unsafe_outcomes_are_told_from_failed_expectations() -> None:
-    base = {"passed": False, "expectations": [], "max_overspeed_kmh": 1.0,
-            "min_eoa_margin_m": 3.0, "min_obstacle_margin_m": None}  # fmt: skip
+    base = {
+        "passed": False,
+        "expectations": [],
+        "max_overspeed_kmh": 1.0,
+        "min_eoa_margin_m": 3.0,
+        "min_obstacle_margin_m": None,
+    }
     assert CellResult(Cell("s", 0), base).unsafe == []  # 1 km/h over: below dV_ebi
     unsafe = CellResult(Cell("s", 0), base | {"max_overspeed_kmh": 9.0, "min_eoa_margin_m": -0.5})
     assert len(unsafe.unsafe) == 2
     crashed = CellResult(Cell("s", 1), None, "Traceback ...")
     summary = summarise([unsafe, crashed])
-    assert summary["unsafe"] == 1 and summary["crashed"] == 1
+    assert summary["unsafe"] == 1
+    assert summary["crashed"] == 1
     assert summary["scenarios"]["s"]["kpis"]["max_overspeed_kmh"]["max"] == 9.0
 
 
@@ -59,10 +66,13 @@ def test_a_campaign_over_worker_processes_writes_its_summary(tmp_path: Path) -> 
     )
     assert result.exit_code == 0, result.output
     summary = json.loads(out.read_text())
-    assert summary["runs"] == 4 and summary["passed"] == 4 and summary["crashed"] == 0
+    assert summary["runs"] == 4
+    assert summary["passed"] == 4
+    assert summary["crashed"] == 0
     assert {cell["seed"] for cell in summary["cells"]} == {0, 1}
-    lines = re.findall(r"^\[\d/4\] (vc-[AB] seed=[01]): passed \(RTF [\d.]+\)$", result.output,
-                       re.MULTILINE)  # fmt: skip
+    lines = re.findall(
+        r"^\[\d/4\] (vc-[AB] seed=[01]): passed \(RTF [\d.]+\)$", result.output, re.MULTILINE
+    )
     assert sorted(lines) == ["vc-A seed=0", "vc-A seed=1", "vc-B seed=0", "vc-B seed=1"]
 
 

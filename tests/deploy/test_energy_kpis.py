@@ -14,9 +14,12 @@ def _columns(
     times = np.arange(soc.size, dtype=float)
     extender = np.where(times >= np.argmin(soc), 100.0, 80.0)
     return {
-        "time_s": times, "soc": soc, "speed_mps": speed_mps,
-        "reference_speed_mps": reference_mps, "range_extender_kw": extender,
-    }  # fmt: skip
+        "time_s": times,
+        "soc": soc,
+        "speed_mps": speed_mps,
+        "reference_speed_mps": reference_mps,
+        "range_extender_kw": extender,
+    }
 
 
 def test_the_soc_minimum_is_timed_from_the_start_and_from_the_cruise() -> None:

@@ -28,10 +28,12 @@ def test_the_simulated_operator_engages_again_after_a_fallback_stop() -> None:
     spec = load_scenario("zenoh-link-loss")
     engages = [a for a in spec.actions if a.do == "engage"]
     assert len(engages) == 2
-    spec = spec.model_copy(update={
-        "actions": tuple(a for a in spec.actions if a is not engages[1]),
-        "operator": spec.operator.model_copy(update={"reengage": True}),
-    })  # fmt: skip
+    spec = spec.model_copy(
+        update={
+            "actions": tuple(a for a in spec.actions if a is not engages[1]),
+            "operator": spec.operator.model_copy(update={"reengage": True}),
+        }
+    )
     kpis = run_scenario(spec, RunOptions(fast=True)).kpis
     done = [a for a in kpis["actions"] if a["action"] == "engage" and a["accepted"]]
     assert len(done) >= 2

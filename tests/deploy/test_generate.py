@@ -67,7 +67,8 @@ def test_the_same_seed_gives_the_same_files_and_every_file_loads(tmp_path: Path)
     assert [p.read_bytes() for p in first] != [p.read_bytes() for p in other]
     for path in first:
         spec = load_scenario(path)
-        assert spec.invariants is not None and spec.journey is not None
+        assert spec.invariants is not None
+        assert spec.journey is not None
         assert 20.0 <= (spec.journey.max_speed_kmh or 0.0) <= 80.0
         assert spec.journey.timing_points[-1].end_of_journey
 
@@ -95,7 +96,8 @@ def test_the_legs_are_timed_from_the_plain_lspb(tmp_path: Path) -> None:
 
 def test_the_default_space_loads() -> None:
     space = load_space(DEFAULT_SPACE)
-    assert space.line == "bologna-ring" and space.invariants.max_stop_error_m == 0.5
+    assert space.line == "bologna-ring"
+    assert space.invariants.max_stop_error_m == 0.5
 
 
 @pytest.mark.parametrize(
@@ -126,11 +128,17 @@ def test_a_bad_space_is_refused_with_where_and_why(
 def _kpis(**changes: Any) -> dict[str, Any]:
     kpis: dict[str, Any] = {
         "stops": [{"name": "tp1-north", "stop_error_m": 0.1, "arrival_error_s": 1.0}],
-        "max_overspeed_kmh": 0.0, "max_speed_over_cap_kmh": 0.0, "min_eoa_margin_m": 50.0,
-        "etcs_sb_count": 0, "etcs_eb_count": 0, "vc_eb_count": 0, "vc_interventions": [],
-        "nmpc_ms": {"p50": 1.0, "p99": 4.0, "max": 9.0}, "actions": [],
+        "max_overspeed_kmh": 0.0,
+        "max_speed_over_cap_kmh": 0.0,
+        "min_eoa_margin_m": 50.0,
+        "etcs_sb_count": 0,
+        "etcs_eb_count": 0,
+        "vc_eb_count": 0,
+        "vc_interventions": [],
+        "nmpc_ms": {"p50": 1.0, "p99": 4.0, "max": 9.0},
+        "actions": [],
         "eoa_stops": [{"time_s": 90.0, "distance_to_eoa_m": 6.4}],
-    }  # fmt: skip
+    }
     kpis.update(changes)
     return kpis
 
@@ -197,8 +205,9 @@ def _ato_failure() -> Any:
 
 def test_the_shrinker_drops_what_does_not_matter_and_keeps_the_cause() -> None:
     space = load_space()
-    base = next(d for k in range(200) if len((d := draw(space, 5, k)).faults) >= 2
-                and d.tsrs and d.legs)  # fmt: skip
+    base = next(
+        d for k in range(200) if len((d := draw(space, 5, k)).faults) >= 2 and d.tsrs and d.legs
+    )
     culprit = base.faults[-1]
 
     def fake_run(spec: ScenarioSpec) -> list[Violation]:
@@ -206,9 +215,11 @@ def test_the_shrinker_drops_what_does_not_matter_and_keeps_the_cause() -> None:
 
     result = shrink(space, base, "vc_eb", fake_run, max_runs=40)
     assert result.draw.faults == (culprit,)
-    assert result.draw.tsrs == () and result.draw.mas == ()
+    assert result.draw.tsrs == ()
+    assert result.draw.mas == ()
     assert len(result.draw.legs) == 1
-    assert result.draw.cap_kmh == 40.0 and result.draw.reaction_s == 1.0
+    assert result.draw.cap_kmh == 40.0
+    assert result.draw.reaction_s == 1.0
     assert result.spec.name.endswith("-shrunk")
     assert result.runs <= 40 and "drop the last leg" in result.steps or len(base.legs) == 1
 
@@ -225,12 +236,14 @@ def test_a_failing_generated_scenario_is_shrunk_and_ato_run_reproduces_it(
 ) -> None:
     # Stops within a millimetre: a real run serves north a few centimetres off, and fails.
     space = _space(tmp_path, max_stop_error_m=0.001, nmpc_max_ms=10_000.0)
-    campaign = run_generated(space, count=1, seed=11, out_dir=tmp_path / "gen", workers=1,
-                             shrink_runs=2)  # fmt: skip
+    campaign = run_generated(
+        space, count=1, seed=11, out_dir=tmp_path / "gen", workers=1, shrink_runs=2
+    )
     [found] = campaign.violations.values()
     assert [v.invariant for v in found] == ["stop_missed"]
     path, result = campaign.shrunk["stop_missed"]
-    assert path == tmp_path / "gen" / "gen-11-0-shrunk.toml" and path.is_file()
+    assert path == tmp_path / "gen" / "gen-11-0-shrunk.toml"
+    assert path.is_file()
     assert result.runs == 2
     assert result.steps[0].startswith("drop sensor_dropout")  # irrelevant to the stop
     assert load_scenario(path).faults == ()
@@ -243,11 +256,26 @@ def test_five_generated_scenarios_keep_every_invariant(tmp_path: Path) -> None:
     out = tmp_path / "gen"
     space = tmp_path / "space.toml"
     space.write_text(SMALL_SPACE.replace("count = [1, 1]", "count = [0, 1]"))
-    arguments = ["campaign", "--generate", "5", "--seed", "2", "--space", str(space), "--out",
-                 str(out), "--workers", "2", "--shrink-runs", "0", "--json",
-                 str(tmp_path / "s.json")]  # fmt: skip
+    arguments = [
+        "campaign",
+        "--generate",
+        "5",
+        "--seed",
+        "2",
+        "--space",
+        str(space),
+        "--out",
+        str(out),
+        "--workers",
+        "2",
+        "--shrink-runs",
+        "0",
+        "--json",
+        str(tmp_path / "s.json"),
+    ]
     result = CliRunner().invoke(app, arguments)
     summary = json.loads((tmp_path / "s.json").read_text())
-    assert summary["runs"] == 5 and len(list(out.glob("gen-2-*.toml"))) == 5
+    assert summary["runs"] == 5
+    assert len(list(out.glob("gen-2-*.toml"))) == 5
     assert summary["invariants"] == {}, result.output
     assert result.exit_code == 0

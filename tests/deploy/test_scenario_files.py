@@ -37,7 +37,8 @@ def test_every_library_scenario_loads() -> None:
 
 def test_a_minimal_scenario_parses_with_defaults() -> None:
     spec = parse_scenario(MINIMAL)
-    assert spec.vehicle.id == "URV1" and spec.vehicle.fidelity == "point_mass"
+    assert spec.vehicle.id == "URV1"
+    assert spec.vehicle.fidelity == "point_mass"
     assert spec.operator.simulated
     condition = spec.actions[0].condition
     assert condition is not None
@@ -51,8 +52,11 @@ def test_a_minimal_scenario_parses_with_defaults() -> None:
         # TOML syntax: where the parser stopped.
         (MINIMAL + "speed_kmh = = 3\n", 10, "TOML"),
         # An unknown key, on its own line.
-        (MINIMAL.replace('line = "bologna-ring"', 'line = "bologna-ring"\nlenght = 3'), 4,
-         "lenght: Extra inputs are not permitted"),
+        (
+            MINIMAL.replace('line = "bologna-ring"', 'line = "bologna-ring"\nlenght = 3'),
+            4,
+            "lenght: Extra inputs are not permitted",
+        ),
         # A bad value inside the second array-of-tables entry.
         (MINIMAL + '\n[[actions]]\ndo = "engage"\nat_s = -1.0\n', 13, "actions.1.at_s"),
         # A condition that does not parse: the line of its `when`.
@@ -62,10 +66,13 @@ def test_a_minimal_scenario_parses_with_defaults() -> None:
         # A missing key: the line of its table.
         (MINIMAL + '\n[[faults]]\nkind = "ato_failure"\n', 11, "start_s: Field required"),
         # A fault window that ends before it starts.
-        (MINIMAL + '\n[[faults]]\nkind = "ato_failure"\nstart_s = 5\nend_s = 2\n', 11,
-         "end_s must be after start_s"),
+        (
+            MINIMAL + '\n[[faults]]\nkind = "ato_failure"\nstart_s = 5\nend_s = 2\n',
+            11,
+            "end_s must be after start_s",
+        ),
     ],
-)  # fmt: skip
+)
 def test_malformed_files_are_rejected_with_line_and_reason(
     text: str, line: int, reason: str
 ) -> None:

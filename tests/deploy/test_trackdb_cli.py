@@ -36,7 +36,8 @@ def test_import_then_export_keeps_the_version(
     to_file = runner.invoke(
         app, ["trackdb", "export", line_id, "--database", database_url, "--output", str(target)]
     )
-    assert to_file.exit_code == 0 and to_file.stdout == ""
+    assert to_file.exit_code == 0
+    assert to_file.stdout == ""
     assert hashlib.sha256(target.read_bytes()).hexdigest() == line.version()
 
     again = runner.invoke(app, ["trackdb", "import", str(target), "--database", database_url])
@@ -58,7 +59,8 @@ def test_an_invalid_file_exits_2_listing_every_problem(tmp_path: Path) -> None:
     assert any(line.startswith("stopping_points[0]") for line in lines[1:])
     assert result.stdout == ""
     listed = runner.invoke(app, ["trackdb", "list", "--database", database])
-    assert listed.exit_code == 0 and listed.stdout == ""
+    assert listed.exit_code == 0
+    assert listed.stdout == ""
 
 
 def test_a_file_that_is_not_json_exits_2(tmp_path: Path) -> None:

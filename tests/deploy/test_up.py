@@ -35,8 +35,9 @@ class Up:
         found = re.search(r"console (\S+)/ \(login (\S+) / (\S+)\)", text)
         assert found, text
         self.url, user, password = found.groups()
-        self.pids = {name: int(pid) for name, pid in re.findall(r"^\s+(\S+)\s+pid (\d+)", text,
-                                                                   re.MULTILINE)}  # fmt: skip
+        self.pids = {
+            name: int(pid) for name, pid in re.findall(r"^\s+(\S+)\s+pid (\d+)", text, re.MULTILINE)
+        }
         token = httpx.post(
             f"{self.url}/api/v1/auth/token", data={"username": user, "password": password}
         ).json()["access_token"]
@@ -49,10 +50,25 @@ class Up:
 
 def _start(tmp_path: Path, *options: str) -> subprocess.Popen[str]:
     return subprocess.Popen(
-        [sys.executable, "-m", "deploy", "up", "--vehicles", "2", "--port", "0",
-         "--router-port", "0", "--data-dir", str(tmp_path), *options],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-    )  # fmt: skip
+        [
+            sys.executable,
+            "-m",
+            "deploy",
+            "up",
+            "--vehicles",
+            "2",
+            "--port",
+            "0",
+            "--router-port",
+            "0",
+            "--data-dir",
+            str(tmp_path),
+            *options,
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
 
 
 @contextmanager
@@ -126,9 +142,14 @@ def _status(up: Up, vehicle: str) -> dict[str, object]:
 
 
 def _command(up: Up, vehicle: str, route: str, body: dict[str, object] | None = None) -> None:
-    answer = httpx.post(f"{up.url}/api/v1/vehicles/{vehicle}/{route}", json=body or {},
-                        headers=up.headers, timeout=10.0)  # fmt: skip
-    assert answer.status_code == 200 and answer.json()["accepted"], answer.text
+    answer = httpx.post(
+        f"{up.url}/api/v1/vehicles/{vehicle}/{route}",
+        json=body or {},
+        headers=up.headers,
+        timeout=10.0,
+    )
+    assert answer.status_code == 200, answer.text
+    assert answer.json()["accepted"], answer.text
 
 
 def _until(up: Up, vehicle: str, check: object, what: str) -> dict[str, object]:
@@ -155,25 +176,41 @@ def test_both_vehicles_are_driven_through_a_journey_over_rest(tmp_path: Path) ->
         for vehicle in vehicles:
             stopped = _until(up, vehicle, lambda s: s["speed_mps"] == 0.0, "standstill")
             journey = {
-                "id": f"east-{vehicle.lower()}", "line_id": "bologna-ring",
-                "start_position_m": stopped["position_m"], "max_speed_mps": 40 / 3.6,
-                "timing_points": [{"id": "east", "stopping_point_id": "east",
-                                   "arrival_time_s": 300.0, "end_of_journey": True}],
-            }  # fmt: skip
+                "id": f"east-{vehicle.lower()}",
+                "line_id": "bologna-ring",
+                "start_position_m": stopped["position_m"],
+                "max_speed_mps": 40 / 3.6,
+                "timing_points": [
+                    {
+                        "id": "east",
+                        "stopping_point_id": "east",
+                        "arrival_time_s": 300.0,
+                        "end_of_journey": True,
+                    }
+                ],
+            }
             stored = httpx.post(f"{up.url}/api/v1/journeys", json=journey, headers=up.headers)
             assert stored.status_code == 201, stored.text
-            sent = httpx.post(f"{up.url}/api/v1/vehicles/{vehicle}/journey-profile",
-                              json={"journey_id": journey["id"]}, headers=up.headers,
-                              timeout=10.0)  # fmt: skip
-            assert sent.status_code == 200 and sent.json()["accepted"], sent.text
+            sent = httpx.post(
+                f"{up.url}/api/v1/vehicles/{vehicle}/journey-profile",
+                json={"journey_id": journey["id"]},
+                headers=up.headers,
+                timeout=10.0,
+            )
+            assert sent.status_code == 200, sent.text
+            assert sent.json()["accepted"], sent.text
         for vehicle in vehicles:
             _until(up, vehicle, lambda s: s["ato_state"] == "RE", "ready")
             _command(up, vehicle, "engage")
         for vehicle in vehicles:
             _until(up, vehicle, lambda s: s["ato_state"] == "EG", "engaged")
         for vehicle in vehicles:
-            end = _until(up, vehicle, lambda s: s["ato_state"] == "NA" and s["speed_mps"] == 0.0,
-                         "end of journey")  # fmt: skip
+            end = _until(
+                up,
+                vehicle,
+                lambda s: s["ato_state"] == "NA" and s["speed_mps"] == 0.0,
+                "end of journey",
+            )
             assert abs(float(end["position_m"]) - 1975.0) <= 1.0  # type: ignore[arg-type]
         up.process.send_signal(signal.SIGTERM)
         assert up.process.wait(30.0) == 0

@@ -21,9 +21,11 @@ def running_trackside(
 ) -> Iterator[tuple[TestClient, dict[str, str]]]:
     """The service with an admin account, and the admin's bearer header."""
     settings = Settings(
-        database_url=f"sqlite:///{tmp_path / 'ts.db'}", zenoh_connect=(router_endpoint,),
-        admin_user=ADMIN[0], admin_password=ADMIN[1],  # type: ignore[arg-type]
-    )  # fmt: skip
+        database_url=f"sqlite:///{tmp_path / 'ts.db'}",
+        zenoh_connect=(router_endpoint,),
+        admin_user=ADMIN[0],
+        admin_password=ADMIN[1],  # type: ignore[arg-type]
+    )
     with TestClient(create_app(settings)) as client:
         response = client.post(
             "/api/v1/auth/token", data=dict(zip(("username", "password"), ADMIN, strict=True))

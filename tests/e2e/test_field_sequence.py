@@ -39,9 +39,11 @@ class Vehicle:
 
     def __init__(self, session: zenoh.Session, operator: zenoh.Session) -> None:
         self.node = OnboardNode(
-            OnboardSettings(vehicle_id="URV1"), session=session, clock=SimClock(),
+            OnboardSettings(vehicle_id="URV1"),
+            session=session,
+            clock=SimClock(),
             track_map=RING,
-        )  # fmt: skip
+        )
         self.operator = operator
         self.events: list[m.Event] = []
         self._events = TypedSubscriber(
@@ -60,10 +62,12 @@ class Vehicle:
 
     def command(self, body: Any) -> m.CommandAck:
         self._command_id += 1
-        command = m.Command(vehicle_id="URV1", command_id=self._command_id, issued_by="e2e",
-                            body=body)  # fmt: skip
-        ack: m.CommandAck = request(self.operator, COMMAND, command, vehicle="URV1",
-                                    timeout_s=REQUEST_TIMEOUT_S)  # fmt: skip
+        command = m.Command(
+            vehicle_id="URV1", command_id=self._command_id, issued_by="e2e", body=body
+        )
+        ack: m.CommandAck = request(
+            self.operator, COMMAND, command, vehicle="URV1", timeout_s=REQUEST_TIMEOUT_S
+        )
         return ack
 
     def while_running(self, action: Callable[[], Any]) -> Any:
@@ -86,17 +90,31 @@ class Vehicle:
 
 def _field_journey(client: TestClient, headers: dict[str, str], start_m: float) -> None:
     journey = {
-        "id": "field-test", "line_id": "bologna-ring", "start_position_m": start_m,
+        "id": "field-test",
+        "line_id": "bologna-ring",
+        "start_position_m": start_m,
         "max_speed_mps": 40 / 3.6,
         "timing_points": [
-            {"id": "east", "stopping_point_id": "east", "arrival_time_s": 300.0,
-             "departure_time_s": 320.0},
-            {"id": "south", "stopping_point_id": "south", "arrival_time_s": 550.0,
-             "departure_time_s": 570.0},
-            {"id": "north", "stopping_point_id": "north", "arrival_time_s": 1000.0,
-             "end_of_journey": True},
+            {
+                "id": "east",
+                "stopping_point_id": "east",
+                "arrival_time_s": 300.0,
+                "departure_time_s": 320.0,
+            },
+            {
+                "id": "south",
+                "stopping_point_id": "south",
+                "arrival_time_s": 550.0,
+                "departure_time_s": 570.0,
+            },
+            {
+                "id": "north",
+                "stopping_point_id": "north",
+                "arrival_time_s": 1000.0,
+                "end_of_journey": True,
+            },
         ],
-    }  # fmt: skip
+    }
     response = client.post("/api/v1/journeys", json=journey, headers=headers)
     assert response.status_code == 201, response.text
 
@@ -104,9 +122,10 @@ def _field_journey(client: TestClient, headers: dict[str, str], start_m: float) 
 def _to_standstill_after_rd(vehicle: Vehicle) -> None:
     node = vehicle.node
     assert vehicle.run_until(
-        lambda: node.session_client.established and node.track_database.versions_match, 30.0,
+        lambda: node.session_client.established and node.track_database.versions_match,
+        30.0,
         step_s=0.2,
-    )  # fmt: skip
+    )
     assert node.stack.etcs.mode is m.EtcsMode.SR
     assert vehicle.command(m.RemoteDrivingTargetCommand(target_speed_mps=30 / 3.6)).accepted
     assert vehicle.run_until(lambda: node.stack.etcs.mode is m.EtcsMode.FS, 60.0)
@@ -121,10 +140,11 @@ def _send_journey(vehicle: Vehicle, client: TestClient, headers: dict[str, str])
     assert selected.status_code == 200, selected.text
     response = vehicle.while_running(
         lambda: client.post(
-            "/api/v1/vehicles/URV1/journey-profile", json={"journey_id": "field-test"},
+            "/api/v1/vehicles/URV1/journey-profile",
+            json={"journey_id": "field-test"},
             headers=headers,
         )
-    )  # fmt: skip
+    )
     assert response.status_code == 200, response.text
     assert response.json()["accepted"] is True
 
@@ -153,16 +173,23 @@ def test_the_seed_000_field_sequence_on_bologna_ring(
             assert report.next_timing_point_id == "east"
             assert [a.timing_point_id for a in report.arrivals] == ["east", "south", "north"]
             assert report.arrivals[0].estimated_s == pytest.approx(300.0, abs=2.0)
-            assert report.position_confidence_m is not None and report.position_confidence_m > 5.0
+            assert report.position_confidence_m is not None
+            assert report.position_confidence_m > 5.0
             stops: list[tuple[str, float, float]] = []
 
             def record_stop() -> bool:
-                stop = stack.driving.stopped_at(vehicle.node.plant.position_m,
-                                                vehicle.node.plant.speed_mps)  # fmt: skip
+                stop = stack.driving.stopped_at(
+                    vehicle.node.plant.position_m, vehicle.node.plant.speed_mps
+                )
                 if stop is not None and (not stops or stops[-1][0] != stop.timing_point_id):
                     error = vehicle.node.plant.position_m - stack.driving._origin_m
-                    stops.append((stop.timing_point_id, stack.driving.journey_time_s(
-                        vehicle.node.clock.now_s), error - stop.distance_m))  # fmt: skip
+                    stops.append(
+                        (
+                            stop.timing_point_id,
+                            stack.driving.journey_time_s(vehicle.node.clock.now_s),
+                            error - stop.distance_m,
+                        )
+                    )
                 # The journey ends on the fused speed reading zero; the train comes to rest a
                 # few ticks later under the brake.
                 plant = vehicle.node.plant
@@ -170,14 +197,18 @@ def test_the_seed_000_field_sequence_on_bologna_ring(
 
             assert vehicle.run_until(record_stop, 1100.0, step_s=0.4)
             assert [name for name, _, _ in stops] == ["east", "south", "north"]
-            for (_, arrival_s, error_m), planned_s in zip(stops, (300.0, 550.0, 1000.0),
-                                                          strict=True):  # fmt: skip
+            for (_, arrival_s, error_m), planned_s in zip(
+                stops, (300.0, 550.0, 1000.0), strict=True
+            ):
                 assert abs(error_m) <= 0.5
                 assert abs(arrival_s - planned_s) <= 2.5
             assert RING.normalise(vehicle.node.plant.position_m) == pytest.approx(550.0, abs=0.5)
             # The ADF drove the journey without a single ETCS intervention.
-            etcs_events = [(e.sim_time_s, e.code, e.text) for e in vehicle.events
-                           if e.code.startswith(("etcs", "ato", "session"))]  # fmt: skip
+            etcs_events = [
+                (e.sim_time_s, e.code, e.text)
+                for e in vehicle.events
+                if e.code.startswith(("etcs", "ato", "session"))
+            ]
             assert stack.etcs.service_brake_interventions == 0, etcs_events
             assert stack.etcs.emergency_brake_interventions == 0
             assert wait_for(lambda: any(e.code == "journey.accepted" for e in vehicle.events))
@@ -212,10 +243,14 @@ def test_trackside_loss_while_engaged_ends_at_the_next_stopping_point(
             assert wait_for(lambda: any(e.code == "session.lost" for e in vehicle.events))
             assert stack.ato_state is m.AtoState.ENGAGED
             assert vehicle.run_until(
-                lambda: stack.driving.stopped_at(vehicle.node.plant.position_m,
-                                                 vehicle.node.plant.speed_mps) is not None,
+                lambda: (
+                    stack.driving.stopped_at(
+                        vehicle.node.plant.position_m, vehicle.node.plant.speed_mps
+                    )
+                    is not None
+                ),
                 400.0,
-            )  # fmt: skip
+            )
             assert RING.normalise(vehicle.node.plant.position_m) == pytest.approx(1975.0, abs=0.5)
             assert vehicle.run_until(lambda: stack.ato_state is m.AtoState.AVAILABLE, 5.0, 0.2)
         finally:
@@ -233,8 +268,10 @@ def test_rbc_movement_authorities_reach_the_onboard_etcs(
     with open_session(connect) as session:
         node = OnboardNode(
             OnboardSettings(vehicle_id="URV1", line_id="milano-bologna", start_position_m=1000.0),
-            session=session, clock=SimClock(), track_map=line,
-        )  # fmt: skip
+            session=session,
+            clock=SimClock(),
+            track_map=line,
+        )
         try:
             etcs = node.stack.etcs
 
@@ -252,12 +289,14 @@ def test_rbc_movement_authorities_reach_the_onboard_etcs(
             issued = client.post(url, json=body, headers=headers)
             assert issued.status_code == 201, issued.text
             assert wait_for(lambda: (eoa_ahead() or 0.0) == pytest.approx(5000.0, abs=1.0))
-            extended = client.post(f"{url}/extend", json={"end_of_authority_m": 9000.0},
-                                   headers=headers)  # fmt: skip
+            extended = client.post(
+                f"{url}/extend", json={"end_of_authority_m": 9000.0}, headers=headers
+            )
             assert extended.status_code == 200, extended.text
             assert wait_for(lambda: (eoa_ahead() or 0.0) == pytest.approx(8000.0, abs=1.0))
-            shortened = client.post(f"{url}/shorten", json={"end_of_authority_m": 4000.0},
-                                    headers=headers)  # fmt: skip
+            shortened = client.post(
+                f"{url}/shorten", json={"end_of_authority_m": 4000.0}, headers=headers
+            )
             assert shortened.status_code == 200, shortened.text
             assert wait_for(lambda: (eoa_ahead() or 0.0) == pytest.approx(3000.0, abs=1.0))
         finally:

@@ -35,9 +35,11 @@ def test_vehicle_appears_then_is_reported_gone(
     track_map = TrackMap(load_seed_line("bologna-ring"))
     with open_session(ZenohSettings(connect=(router_endpoint,))) as session:
         node = OnboardNode(
-            OnboardSettings(vehicle_id="URV1"), session=session, clock=RealTimeClock(1.0),
+            OnboardSettings(vehicle_id="URV1"),
+            session=session,
+            clock=RealTimeClock(1.0),
             track_map=track_map,
-        )  # fmt: skip
+        )
         runner = threading.Thread(target=node.run, daemon=True)
         started = time.monotonic()
         runner.start()
@@ -46,17 +48,23 @@ def test_vehicle_appears_then_is_reported_gone(
         )
         appeared_s = time.monotonic() - started
         item = _vehicle(client, headers, "URV1")
-        assert item is not None and item["alive"] is True
+        assert item is not None
+        assert item["alive"] is True
         # The onboard Track Database Manager asked the trackside for the line's version.
         assert wait_for(lambda: node.track_database.versions_match, 3.0)
 
         # Drive it, through the router, and see its status change.
         ack = request(
-            session, COMMAND,
-            m.Command(vehicle_id="URV1", command_id=1, issued_by="e2e",
-                      body=m.RemoteDrivingTargetCommand(target_speed_mps=10.0)),
+            session,
+            COMMAND,
+            m.Command(
+                vehicle_id="URV1",
+                command_id=1,
+                issued_by="e2e",
+                body=m.RemoteDrivingTargetCommand(target_speed_mps=10.0),
+            ),
             vehicle="URV1",
-        )  # fmt: skip
+        )
         assert ack.accepted
         # The Vital Control holds the EB from power-up until the operator confirms its rearm:
         # the request reaches the trackside in the status, the confirmation goes back.
@@ -65,10 +73,11 @@ def test_vehicle_appears_then_is_reported_gone(
             request=m.OperatorRequestKind.EB_REARM, number=_rearm_request(client, headers) or 0
         )
         ack = request(
-            session, COMMAND,
+            session,
+            COMMAND,
             m.Command(vehicle_id="URV1", command_id=2, issued_by="e2e", body=confirm),
             vehicle="URV1",
-        )  # fmt: skip
+        )
         assert ack.accepted, ack.reason
         assert wait_for(lambda: _speed(client, headers) > 0.1, 5.0)
 
@@ -78,7 +87,8 @@ def test_vehicle_appears_then_is_reported_gone(
         closed = time.monotonic()
     assert wait_for(lambda: (_vehicle(client, headers, "URV1") or {}).get("alive") is False, 2.0)
     gone_s = time.monotonic() - closed
-    assert appeared_s < 2.0 and gone_s < 2.0
+    assert appeared_s < 2.0
+    assert gone_s < 2.0
 
 
 def _rearm_request(client: TestClient, headers: dict[str, str]) -> int | None:

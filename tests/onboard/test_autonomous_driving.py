@@ -38,10 +38,13 @@ def record(request: pytest.FixtureRequest) -> ClosedLoopRecord:
         )
         assert kept_plain == 0
     return run_autonomous_journey(
-        plan, stops=[Stop(distance, arrival) for distance, arrival, _ in STOPS],
-        model=URV_PARAMETERS, truth=mismatched_urv(),  # type: ignore[arg-type]
-        controller=NmpcController(URV_PARAMETERS), duration_s=1010.0,
-    )  # fmt: skip
+        plan,
+        stops=[Stop(distance, arrival) for distance, arrival, _ in STOPS],
+        model=URV_PARAMETERS,
+        truth=mismatched_urv(),  # type: ignore[arg-type]
+        controller=NmpcController(URV_PARAMETERS),
+        duration_s=1010.0,
+    )
 
 
 def test_every_stop_within_half_a_metre_and_two_seconds(record: ClosedLoopRecord) -> None:

@@ -20,18 +20,38 @@ CONTROL_S, PLANT_S = 0.2, 0.01
 def field_journey(version: int = 1) -> m.JourneyProfile:
     """Seed 000's field test from 200 m: east (1975 m), south (3400 m), north (550 m)."""
     points = (
-        m.TimingPoint(id="east", position_m=1975.0, kind=m.TimingPointKind.STOPPING,
-                      arrival_time_s=300.0, departure_time_s=320.0),
-        m.TimingPoint(id="south", position_m=3400.0, kind=m.TimingPointKind.STOPPING,
-                      arrival_time_s=550.0, departure_time_s=570.0),
-        m.TimingPoint(id="north", position_m=550.0, kind=m.TimingPointKind.STOPPING,
-                      arrival_time_s=1000.0, end_of_journey=True),
-    )  # fmt: skip
+        m.TimingPoint(
+            id="east",
+            position_m=1975.0,
+            kind=m.TimingPointKind.STOPPING,
+            arrival_time_s=300.0,
+            departure_time_s=320.0,
+        ),
+        m.TimingPoint(
+            id="south",
+            position_m=3400.0,
+            kind=m.TimingPointKind.STOPPING,
+            arrival_time_s=550.0,
+            departure_time_s=570.0,
+        ),
+        m.TimingPoint(
+            id="north",
+            position_m=550.0,
+            kind=m.TimingPointKind.STOPPING,
+            arrival_time_s=1000.0,
+            end_of_journey=True,
+        ),
+    )
     return m.JourneyProfile(
-        vehicle_id="URV1", journey_id="field-test", version=version,
-        status=m.JourneyProfileStatus.VALID, line_id="bologna-ring", track_data_version="x",
-        max_speed_mps=40 / 3.6, timing_points=points,
-    )  # fmt: skip
+        vehicle_id="URV1",
+        journey_id="field-test",
+        version=version,
+        status=m.JourneyProfileStatus.VALID,
+        line_id="bologna-ring",
+        track_data_version="x",
+        max_speed_mps=40 / 3.6,
+        timing_points=points,
+    )
 
 
 class Loop:
@@ -49,16 +69,22 @@ class Loop:
     def run(self, seconds: float, **flags: bool) -> None:
         for _ in range(round(seconds / CONTROL_S)):
             force = self.adf.step(
-                self.now, position_m=self.plant.position_m, speed_mps=self.plant.speed_mps,
-                applied_force_n=self.plant.applied_force_n, gradient_permille=self.gradient(),
-                force_limits_n=self.plant.force_limits_n(self.plant.speed_mps), **flags,
-            )  # fmt: skip
+                self.now,
+                position_m=self.plant.position_m,
+                speed_mps=self.plant.speed_mps,
+                applied_force_n=self.plant.applied_force_n,
+                gradient_permille=self.gradient(),
+                force_limits_n=self.plant.force_limits_n(self.plant.speed_mps),
+                **flags,
+            )
             for _ in range(round(CONTROL_S / PLANT_S)):
                 chainage = self.ring.normalise(self.plant.position_m)
                 self.plant.step(
-                    PLANT_S, force, gradient_permille=self.ring.gradient_permille(chainage),
+                    PLANT_S,
+                    force,
+                    gradient_permille=self.ring.gradient_permille(chainage),
                     curve_radius_m=self.ring.curve_radius_m(chainage),
-                )  # fmt: skip
+                )
             self.now += CONTROL_S
 
 
@@ -80,7 +106,8 @@ def test_remote_driving_then_the_first_leg_of_the_journey_in_ad(ring: TrackMap) 
     start = ring.normalise(loop.plant.position_m)
     journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=start)
     assert [s.timing_point_id for s in journey.stops] == ["east", "south", "north"]
-    assert journey.stops[-1].end_of_journey and journey.legs_kept_plain == 0
+    assert journey.stops[-1].end_of_journey
+    assert journey.legs_kept_plain == 0
     loop.adf.start_journey(journey, loop.now, position_m=loop.plant.position_m)
     loop.adf.engage(loop.now)
     loop.run(2.2)
@@ -88,7 +115,8 @@ def test_remote_driving_then_the_first_leg_of_the_journey_in_ad(ring: TrackMap) 
     started = loop.now
     loop.run(305.0)
     stop = loop.adf.stopped_at(loop.plant.position_m, loop.plant.speed_mps)
-    assert stop is not None and stop.timing_point_id == "east"
+    assert stop is not None
+    assert stop.timing_point_id == "east"
     assert abs(ring.normalise(loop.plant.position_m) - 1975.0) <= 0.5
     assert loop.now - started > 300.0
     assert loop.adf.next_stop(loop.plant.position_m).timing_point_id == "south"  # type: ignore[union-attr]
@@ -112,8 +140,9 @@ def test_the_train_closes_up_to_an_eoa_short_of_its_stop_then_goes_on(ring: Trac
         ):
             standstills.append(loop.plant.position_m)
         assert loop.now < 250.0
-    loop.adf.set_etcs_limits(60 / 3.6, 800.0 - loop.plant.position_m,
-                             position_m=loop.plant.position_m)  # fmt: skip
+    loop.adf.set_etcs_limits(
+        60 / 3.6, 800.0 - loop.plant.position_m, position_m=loop.plant.position_m
+    )
     loop.run(10.0)  # it stays
     # First short of it by the 5 m margin plus what is kept for the growth of the odometry
     # interval (6 % of the 600 m to the EoA when the stop was planned: 36 m); standing there,
@@ -129,7 +158,8 @@ def test_the_train_closes_up_to_an_eoa_short_of_its_stop_then_goes_on(ring: Trac
         assert loop.now < 330.0
     assert not loop.adf.stopping_for_authority
     stop = loop.adf.stopped_at(loop.plant.position_m, loop.plant.speed_mps)
-    assert stop is not None and stop.timing_point_id == "east"
+    assert stop is not None
+    assert stop.timing_point_id == "east"
     assert abs(loop.plant.position_m - 1975.0) <= 0.5
     assert loop.now <= 300.0 + 2.0
 
@@ -153,7 +183,8 @@ def test_traction_cut_and_service_brake_from_the_ato_ob_win(ring: TrackMap) -> N
     loop = Loop(ring)
     loop.adf.remote(30 / 3.6, 0.0, speed_mps=0.0, gradient_permille=0.0)
     loop.run(10.0, traction_allowed=False)
-    assert loop.plant.applied_force_n <= 0.0 and loop.plant.speed_mps < 0.5  # may roll, no more
+    assert loop.plant.applied_force_n <= 0.0
+    assert loop.plant.speed_mps < 0.5
     loop.run(10.0)
     assert loop.plant.speed_mps > 2.0
     loop.run(15.0, service_brake=True)
@@ -163,9 +194,18 @@ def test_traction_cut_and_service_brake_from_the_ato_ob_win(ring: TrackMap) -> N
 def test_a_journey_with_an_unreachable_schedule_is_refused(ring: TrackMap) -> None:
     profile = field_journey()
     rushed = profile.model_copy(
-        update={"timing_points": (profile.timing_points[0].model_copy(
-            update={"arrival_time_s": 60.0, "departure_time_s": None, "end_of_journey": True}),)}
-    )  # fmt: skip
+        update={
+            "timing_points": (
+                profile.timing_points[0].model_copy(
+                    update={
+                        "arrival_time_s": 60.0,
+                        "departure_time_s": None,
+                        "end_of_journey": True,
+                    }
+                ),
+            )
+        }
+    )
     with pytest.raises(InfeasibleLegError, match="field-test"):
         plan_journey(ring, URV_PARAMETERS, rushed, start_chainage_m=200.0)
 
@@ -176,8 +216,9 @@ def test_a_skipped_stop_is_run_through_and_the_next_one_served(ring: TrackMap) -
     loop.adf.start_journey(journey, 0.0, position_m=200.0)
     loop.adf.engage(0.0)
     loop.run(60.0)
-    loop.adf.skip_stop("east", loop.now, position_m=loop.plant.position_m,
-                       speed_mps=loop.plant.speed_mps)  # fmt: skip
+    loop.adf.skip_stop(
+        "east", loop.now, position_m=loop.plant.position_m, speed_mps=loop.plant.speed_mps
+    )
     assert loop.adf.next_stop(loop.plant.position_m).timing_point_id == "south"  # type: ignore[union-attr]
     slowest_near_east = float("inf")
     for _ in range(int(560 / 2.0)):
@@ -188,7 +229,8 @@ def test_a_skipped_stop_is_run_through_and_the_next_one_served(ring: TrackMap) -
             break
     assert slowest_near_east > 3.0  # ran through east
     stop = loop.adf.stopped_at(loop.plant.position_m, loop.plant.speed_mps)
-    assert stop is not None and stop.timing_point_id == "south"
+    assert stop is not None
+    assert stop.timing_point_id == "south"
     assert abs(loop.plant.position_m - 3400.0) <= 0.5
     loop.run(0.4)  # a control step at standstill marks the stop served
     assert [s.timing_point_id for s, _ in loop.adf.arrival_estimates(loop.now, 3400.0)] == ["north"]
@@ -200,15 +242,19 @@ def test_train_hold_keeps_the_train_at_the_stop_until_released(ring: TrackMap) -
     loop.adf.start_journey(journey, 0.0, position_m=200.0)
     loop.adf.engage(0.0)
     loop.run(100.0)
-    loop.adf.set_hold(True, loop.now, position_m=loop.plant.position_m,
-                      speed_mps=loop.plant.speed_mps)  # fmt: skip
+    loop.adf.set_hold(
+        True, loop.now, position_m=loop.plant.position_m, speed_mps=loop.plant.speed_mps
+    )
     loop.run(300.0)  # past east's departure at 320 s
-    assert loop.now > 390.0 and loop.plant.speed_mps == 0.0
+    assert loop.now > 390.0
+    assert loop.plant.speed_mps == 0.0
     assert abs(loop.plant.position_m - 1975.0) <= 0.5
-    loop.adf.set_hold(False, loop.now, position_m=loop.plant.position_m,
-                      speed_mps=loop.plant.speed_mps)  # fmt: skip
+    loop.adf.set_hold(
+        False, loop.now, position_m=loop.plant.position_m, speed_mps=loop.plant.speed_mps
+    )
     loop.run(30.0)
-    assert loop.plant.speed_mps > 3.0 and loop.plant.position_m > 2000.0
+    assert loop.plant.speed_mps > 3.0
+    assert loop.plant.position_m > 2000.0
 
 
 def test_no_limit_cycle_at_a_low_constant_speed_just_under_a_tsr() -> None:
@@ -219,17 +265,18 @@ def test_no_limit_cycle_at_a_low_constant_speed_just_under_a_tsr() -> None:
     journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
     loop.adf.start_journey(journey, 0.0, position_m=200.0)
     loop.adf.engage(0.0)
-    tsr = TemporarySpeedRestriction(id="tsr-1", start_m=900.0, end_m=1400.0,
-                                    speed_mps=25 / 3.6)  # fmt: skip
+    tsr = TemporarySpeedRestriction(id="tsr-1", start_m=900.0, end_m=1400.0, speed_mps=25 / 3.6)
     speeds: list[float] = []
     while loop.plant.position_m < 1400.0:
         if loop.now == pytest.approx(20.0):  # running at 40 km/h, some 500 m before it
             ring.add_temporary_speed_restriction(tsr)
-            loop.adf.speed_limits_changed(loop.now, position_m=loop.plant.position_m,
-                                          speed_mps=loop.plant.speed_mps)  # fmt: skip
+            loop.adf.speed_limits_changed(
+                loop.now, position_m=loop.plant.position_m, speed_mps=loop.plant.speed_mps
+            )
         # ETCS's permitted speed is the MRSP where the train is (its ceiling).
-        loop.adf.set_etcs_limits(ring.mrsp_mps(loop.plant.position_m), None,
-                                 position_m=loop.plant.position_m)  # fmt: skip
+        loop.adf.set_etcs_limits(
+            ring.mrsp_mps(loop.plant.position_m), None, position_m=loop.plant.position_m
+        )
         loop.run(CONTROL_S)
         if 950.0 <= loop.plant.position_m <= 1390.0:
             reference = loop.adf.reference_speed_mps(loop.now)
@@ -238,7 +285,8 @@ def test_no_limit_cycle_at_a_low_constant_speed_just_under_a_tsr() -> None:
             speeds.append(loop.plant.speed_mps * 3.6)
         assert loop.now < 200.0
     assert len(speeds) > 50
-    assert max(speeds) <= 25.0 and min(speeds) >= 20.0
+    assert max(speeds) <= 25.0
+    assert min(speeds) >= 20.0
     # No cycle: the speed turns (by more than 0.1 km/h) at most once, from holding just under
     # the limit to coasting towards its end (the plan's energy-saving).
     turns, direction, extreme = 0, 0, speeds[0]
@@ -265,12 +313,14 @@ def test_a_stop_reached_late_keeps_its_dwell(ring: TrackMap) -> None:
     ring.add_temporary_speed_restriction(
         TemporarySpeedRestriction(id="tsr-late", start_m=1700.0, end_m=2100.0, speed_mps=8 / 3.6)
     )
-    loop.adf.speed_limits_changed(loop.now, position_m=loop.plant.position_m,
-                                  speed_mps=loop.plant.speed_mps)  # fmt: skip
+    loop.adf.speed_limits_changed(
+        loop.now, position_m=loop.plant.position_m, speed_mps=loop.plant.speed_mps
+    )
     arrived_s = None
     while loop.now < 500.0:
-        loop.adf.set_etcs_limits(ring.mrsp_mps(loop.plant.position_m), None,
-                                 position_m=loop.plant.position_m)  # fmt: skip
+        loop.adf.set_etcs_limits(
+            ring.mrsp_mps(loop.plant.position_m), None, position_m=loop.plant.position_m
+        )
         loop.run(CONTROL_S)
         stop = loop.adf.stopped_at(loop.plant.position_m, loop.plant.speed_mps)
         if arrived_s is None and stop is not None and stop.timing_point_id == "east":
@@ -278,7 +328,8 @@ def test_a_stop_reached_late_keeps_its_dwell(ring: TrackMap) -> None:
             assert abs(loop.plant.position_m - 1975.0) <= 0.5
         if arrived_s is not None and loop.plant.speed_mps > 0.1:
             break
-    assert arrived_s is not None and arrived_s > 320.0  # later than east's departure
+    assert arrived_s is not None
+    assert arrived_s > 320.0
     east = journey.stops[0]
     # East's dwell, from the replanned arrival (the train stops a second or two after it).
     assert loop.adf.departure_s(east) >= arrived_s + 20.0 - 2.0
@@ -303,5 +354,6 @@ def test_a_train_far_behind_its_plan_is_replanned_from_where_it_is(ring: TrackMa
     assert abs(reference - (loop.plant.position_m - 200.0)) < 5.0
     loop.run(230.0)  # to 315 s: east's arrival is at 300 s, its departure at 320 s
     stop = loop.adf.stopped_at(loop.plant.position_m, loop.plant.speed_mps)
-    assert stop is not None and stop.timing_point_id == "east"
+    assert stop is not None
+    assert stop.timing_point_id == "east"
     assert abs(loop.plant.position_m - 1975.0) <= 0.5

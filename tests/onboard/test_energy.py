@@ -45,9 +45,13 @@ def test_the_optimum_beats_the_plain_lspb_and_keeps_the_limits() -> None:
     plan = plan_legs(ring, start_chainage_m=200.0, stops=[(1775.0, 300.0, 320.0)], cap_mps=CAP_MPS)
     baseline = plan_traction_energy_j(plan, URV_PARAMETERS)
     best = optimal_leg(
-        ring, URV_PARAMETERS, start_chainage_m=200.0, distance_m=1775.0, duration_s=300.0,
+        ring,
+        URV_PARAMETERS,
+        start_chainage_m=200.0,
+        distance_m=1775.0,
+        duration_s=300.0,
         cap_mps=CAP_MPS,
-    )  # fmt: skip
+    )
     assert best.traction_energy_j < 0.95 * baseline
     assert best.speeds_mps.max() <= CAP_MPS + 1e-6
     assert best.speeds_mps[0] == pytest.approx(0.0, abs=1e-6)
@@ -77,12 +81,15 @@ def test_energy_minimised_lap_saves_against_lspb_and_nears_the_optimum() -> None
     assert energy <= 0.90 * plan_traction_energy_j(lspb, URV_PARAMETERS)
     best = sum(
         optimal_leg(
-            ring, URV_PARAMETERS, start_chainage_m=200.0 + leg.start_distance_m,
-            distance_m=leg.segment.distance_m, duration_s=leg.segment.duration_s,
+            ring,
+            URV_PARAMETERS,
+            start_chainage_m=200.0 + leg.start_distance_m,
+            distance_m=leg.segment.distance_m,
+            duration_s=leg.segment.duration_s,
             cap_mps=CAP_MPS,
         ).traction_energy_j
         for leg in lspb.legs
-    )  # fmt: skip
+    )
     assert energy <= 1.05 * best
     # Arrival times and stopping points are kept.
     for (distance, arrival, _), leg in zip(stops, ours.legs, strict=True):
@@ -97,14 +104,20 @@ def test_a_leg_follows_the_speed_sections_inside_it() -> None:
     the optimum."""
     line = TrackMap(
         LineBuilder(id="sections", name="Sections")
-        .straight(1500.0, speed_kmh=80).straight(800.0, speed_kmh=40)
-        .straight(1700.0, speed_kmh=80).build()
-    )  # fmt: skip
+        .straight(1500.0, speed_kmh=80)
+        .straight(800.0, speed_kmh=40)
+        .straight(1700.0, speed_kmh=80)
+        .build()
+    )
     duration_s, cap_mps = 300.0, 80 / 3.6
     leg = optimise_leg(
-        line, URV_PARAMETERS, start_chainage_m=0.0, distance_m=3800.0, duration_s=duration_s,
+        line,
+        URV_PARAMETERS,
+        start_chainage_m=0.0,
+        distance_m=3800.0,
+        duration_s=duration_s,
         cap_mps=cap_mps,
-    )  # fmt: skip
+    )
     assert leg.duration_s == pytest.approx(duration_s, abs=0.01)
     assert leg.max_speed_mps > 40 / 3.6 + 1.0
     slow = (leg.distances_m >= 1500.0) & (leg.distances_m <= 2300.0)
@@ -118,9 +131,13 @@ def test_a_leg_follows_the_speed_sections_inside_it() -> None:
     assert np.all(np.diff(leg.speeds_mps[ahead]) <= 1e-9)
     assert leg.speeds_mps[ahead][0] - leg.speeds_mps[ahead][-1] > 40 / 3.6 * 0.2
     best = optimal_leg(
-        line, URV_PARAMETERS, start_chainage_m=0.0, distance_m=3800.0, duration_s=duration_s,
+        line,
+        URV_PARAMETERS,
+        start_chainage_m=0.0,
+        distance_m=3800.0,
+        duration_s=duration_s,
         cap_mps=cap_mps,
-    )  # fmt: skip
+    )
     assert leg.traction_energy_j <= 1.05 * best.traction_energy_j
     plan = OdpPlan([OdpLeg(0.0, 0.0, leg)], start_chainage_m=0.0, track_map=line)
     _never_above(plan, cap_mps)
@@ -132,13 +149,19 @@ def test_a_leg_follows_the_speed_sections_inside_it() -> None:
 def test_a_steep_descent_is_held_by_the_brake_not_exceeded() -> None:
     line = TrackMap(
         LineBuilder(id="descent", name="Descent")
-        .straight(600.0, speed_kmh=60).straight(1400.0, speed_kmh=60, gradient_permille=-25.0)
-        .straight(500.0, speed_kmh=60).build()
-    )  # fmt: skip
+        .straight(600.0, speed_kmh=60)
+        .straight(1400.0, speed_kmh=60, gradient_permille=-25.0)
+        .straight(500.0, speed_kmh=60)
+        .build()
+    )
     leg = optimise_leg(
-        line, URV_PARAMETERS, start_chainage_m=0.0, distance_m=2400.0, duration_s=220.0,
+        line,
+        URV_PARAMETERS,
+        start_chainage_m=0.0,
+        distance_m=2400.0,
+        duration_s=220.0,
         cap_mps=60 / 3.6,
-    )  # fmt: skip
+    )
     assert leg.duration_s == pytest.approx(220.0, abs=0.01)
     assert leg.max_speed_mps <= 60 / 3.6 + 1e-6
     assert leg.speeds_mps[-1] == 0.0
@@ -148,9 +171,13 @@ def test_an_impossible_schedule_is_refused() -> None:
     ring = TrackMap(load_seed_line("bologna-ring"))
     with pytest.raises(InfeasibleLegError, match="more than the"):
         optimise_leg(
-            ring, URV_PARAMETERS, start_chainage_m=200.0, distance_m=1775.0, duration_s=100.0,
+            ring,
+            URV_PARAMETERS,
+            start_chainage_m=200.0,
+            distance_m=1775.0,
+            duration_s=100.0,
             cap_mps=CAP_MPS,
-        )  # fmt: skip
+        )
 
 
 def test_replanning_from_a_moving_train_obeys_a_new_restriction() -> None:
@@ -161,9 +188,15 @@ def test_replanning_from_a_moving_train_obeys_a_new_restriction() -> None:
         TemporarySpeedRestriction(id="tsr-1", start_m=800.0, end_m=1100.0, speed_mps=20 / 3.6)
     )
     plan = replan_from_state(
-        ring, URV_PARAMETERS, now_s=50.0, start_chainage_m=200.0, distance_m=300.0,
-        speed_mps=CAP_MPS, stop_distance_m=1275.0, cruise_mps=CAP_MPS,
-    )  # fmt: skip
+        ring,
+        URV_PARAMETERS,
+        now_s=50.0,
+        start_chainage_m=200.0,
+        distance_m=300.0,
+        speed_mps=CAP_MPS,
+        stop_distance_m=1275.0,
+        cruise_mps=CAP_MPS,
+    )
     assert plan.reference(50.0) == pytest.approx((300.0, CAP_MPS))
     _never_above(plan, CAP_MPS)
     assert plan.reference(plan.end_s) == pytest.approx((1575.0, 0.0))
@@ -184,9 +217,15 @@ def test_a_tsr_inside_the_braking_distance_is_met_by_braking_and_the_plan_goes_o
         TemporarySpeedRestriction(id="tsr-1", start_m=540.0, end_m=800.0, speed_mps=20 / 3.6)
     )
     plan = replan_from_state(
-        ring, URV_PARAMETERS, now_s=50.0, start_chainage_m=200.0, distance_m=300.0,
-        speed_mps=CAP_MPS, stop_distance_m=1275.0, cruise_mps=CAP_MPS,
-    )  # fmt: skip
+        ring,
+        URV_PARAMETERS,
+        now_s=50.0,
+        start_chainage_m=200.0,
+        distance_m=300.0,
+        speed_mps=CAP_MPS,
+        stop_distance_m=1275.0,
+        cruise_mps=CAP_MPS,
+    )
     assert plan.reference(50.0) == pytest.approx((300.0, CAP_MPS))
     recovered_m = 300.0 + (CAP_MPS**2 - (20 / 3.6) ** 2) / (2 * RECOVERY_BRAKING_MPS2)
     for t in np.arange(50.0, 90.0, 0.5):
@@ -204,9 +243,15 @@ def test_a_train_too_fast_to_stop_in_the_leg_is_refused() -> None:
     ring = TrackMap(load_seed_line("bologna-ring"))
     with pytest.raises(InfeasibleLegError, match="within the leg"):
         replan_from_state(
-            ring, URV_PARAMETERS, now_s=50.0, start_chainage_m=200.0, distance_m=300.0,
-            speed_mps=CAP_MPS, stop_distance_m=40.0, cruise_mps=CAP_MPS,
-        )  # fmt: skip
+            ring,
+            URV_PARAMETERS,
+            now_s=50.0,
+            start_chainage_m=200.0,
+            distance_m=300.0,
+            speed_mps=CAP_MPS,
+            stop_distance_m=40.0,
+            cruise_mps=CAP_MPS,
+        )
 
 
 @pytest.mark.parametrize("gradient_permille", [0.0, -10.0])
@@ -220,12 +265,18 @@ def test_braking_into_a_lower_limit_stays_under_the_etcs_permitted_curve(
         LineBuilder(id="drop", name="Drop")
         .balise_group(1, 100.0)
         .straight(1500.0, speed_kmh=80, gradient_permille=gradient_permille)
-        .straight(400.0, speed_kmh=20).straight(1000.0, speed_kmh=80).build()
-    )  # fmt: skip
+        .straight(400.0, speed_kmh=20)
+        .straight(1000.0, speed_kmh=80)
+        .build()
+    )
     leg = optimise_leg(
-        line, URV_PARAMETERS, start_chainage_m=0.0, distance_m=2800.0, duration_s=290.0,
+        line,
+        URV_PARAMETERS,
+        start_chainage_m=0.0,
+        distance_m=2800.0,
+        duration_s=290.0,
         cap_mps=80 / 3.6,
-    )  # fmt: skip
+    )
     assert leg.duration_s == pytest.approx(290.0, abs=0.01)
     decrease = Target(TargetKind.SPEED_DECREASE, 1500.0, 20 / 3.6)
     limits = BrakingModel().target_limits(decrease, track_map=line, from_m=0.0)

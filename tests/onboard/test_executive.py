@@ -146,14 +146,14 @@ def test_stop_from_another_thread_ends_an_endless_run() -> None:
 
 @pytest.mark.parametrize("kwargs", [{"period_s": 0.0}, {"period_s": 0.1, "phase_s": -1.0}])
 def test_bad_task_parameters(kwargs: dict[str, float]) -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="must"):
         Executive(SimClock()).add_task("t", lambda _t: None, **kwargs)
 
 
 def test_duplicate_task_name() -> None:
     executive = Executive(SimClock())
     executive.add_task("t", lambda _t: None, period_s=0.1)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="already registered"):
         executive.add_task("t", lambda _t: None, period_s=0.1)
 
 
@@ -168,9 +168,13 @@ def test_a_task_registered_by_a_running_task_takes_its_place_in_the_order() -> N
     executive.add_task("second", lambda _t: None, period_s=0.01, priority=1)
     executive.run_until(10 * MS)
     assert executive.trace == [
-        (0, "first"), (0, "late"), (0, "second"),
-        (10 * MS, "late"), (10 * MS, "first"), (10 * MS, "second"),
-    ]  # fmt: skip
+        (0, "first"),
+        (0, "late"),
+        (0, "second"),
+        (10 * MS, "late"),
+        (10 * MS, "first"),
+        (10 * MS, "second"),
+    ]
 
 
 def test_a_task_that_raises_leaves_the_others_running() -> None:

@@ -41,9 +41,11 @@ def test_tracks_the_reference_despite_model_mismatch() -> None:
         now = k * DT
         reference = _reference(now + np.arange(1, N + 1) * DT)
         result = controller.solve(
-            position_m=plant.position_m, speed_mps=plant.speed_mps,
-            applied_force_n=plant.applied_force_n, reference=reference,
-        )  # fmt: skip
+            position_m=plant.position_m,
+            speed_mps=plant.speed_mps,
+            applied_force_n=plant.applied_force_n,
+            reference=reference,
+        )
         assert result.success
         for _ in range(20):
             plant.step(0.01, result.force_n)
@@ -63,9 +65,11 @@ def test_prediction_respects_speed_force_and_power_limits() -> None:
     times = np.arange(1, N + 1) * DT
     # The reference asks for a little more than the ceiling allows: the ceiling wins.
     reference = NmpcReference(
-        position_m=25.0 * times, speed_mps=np.full(N, 26.0), max_speed_mps=np.full(N, 25.0),
+        position_m=25.0 * times,
+        speed_mps=np.full(N, 26.0),
+        max_speed_mps=np.full(N, 25.0),
         track_force_n=np.zeros(N),
-    )  # fmt: skip
+    )
     result = controller.solve(
         position_m=0.0, speed_mps=20.0, applied_force_n=0.0, reference=reference
     )
@@ -88,7 +92,8 @@ def test_a_failed_solve_without_a_plan_brakes() -> None:
     result = controller.solve(
         position_m=0.0, speed_mps=20.0, applied_force_n=0.0, reference=_infeasible()
     )
-    assert result.fallback and not result.success
+    assert result.fallback
+    assert not result.success
     assert result.force_n == -URV_PARAMETERS.max_brake_force_n
     assert controller.stats.failures == 1
 
@@ -118,7 +123,8 @@ def test_the_fallback_law_holds_the_reference_under_the_ceiling() -> None:
     reference = NmpcReference(np.zeros(N), np.full(N, 10.0), np.full(N, 15.0), np.zeros(N))
     slower = controller._fallback(0.0, 8.0, reference)
     faster = controller._fallback(0.0, 12.0, reference)
-    assert slower.fallback and slower.force_n > 0.0
+    assert slower.fallback
+    assert slower.force_n > 0.0
     assert faster.force_n < 0.0
     above = controller._fallback(0.0, 16.0, reference)
     assert above.force_n == -URV_PARAMETERS.max_brake_force_n
@@ -173,5 +179,6 @@ def test_a_ceiling_the_train_is_already_above_is_met_by_braking_not_failed() -> 
     assert reference.max_speed_mps[0] >= speed
     assert np.all(reference.max_speed_mps[-10:] <= 20 / 3.6 + 1e-9)
     force = driving.force_n(float(now_s), distance_m=distance, speed_mps=speed, applied_force_n=0.0)
-    assert driving.last_result is not None and driving.last_result.success
+    assert driving.last_result is not None
+    assert driving.last_result.success
     assert force < 0.0

@@ -21,9 +21,11 @@ from trackdb import TrackMap, load_seed_line
 def node(zenoh_pair: tuple[zenoh.Session, zenoh.Session]):  # type: ignore[no-untyped-def]
     _, onboard = zenoh_pair
     node = OnboardNode(
-        OnboardSettings(vehicle_id="URV1"), session=onboard, clock=SimClock(),
+        OnboardSettings(vehicle_id="URV1"),
+        session=onboard,
+        clock=SimClock(),
         track_map=TrackMap(load_seed_line("bologna-ring")),
-    )  # fmt: skip
+    )
     yield node
     node.close()
 
@@ -74,7 +76,8 @@ def test_remote_driving_command_moves_the_vehicle(
             _command(m.RemoteDrivingTargetCommand(target_speed_mps=30 / 3.6), 7),
             vehicle="URV1",
         )
-        assert ack.accepted and ack.command_id == 7
+        assert ack.accepted
+        assert ack.command_id == 7
         LockstepOperator(trackside, node).run(90.0)  # confirms the power-up EB rearm
         assert wait_for(lambda: any(e.code == "rd.target_speed" for e in events))
     report = node.status(node.clock.now_ns)
@@ -99,7 +102,7 @@ def _ping(session: zenoh.Session) -> bool:
 
 
 @pytest.mark.parametrize(
-    "body, reason",
+    ("body", "reason"),
     [
         (m.EngageCommand(), "no journey profile"),
         (m.DisengageCommand(), "not engaged"),
@@ -113,7 +116,8 @@ def test_commands_that_cannot_be_obeyed_are_refused_with_a_reason(
     assert wait_for(lambda: _ping(trackside))
     ack = request(trackside, COMMAND, _command(body), vehicle="URV1")
     assert not ack.accepted
-    assert ack.reason is not None and reason in ack.reason
+    assert ack.reason is not None
+    assert reason in ack.reason
     node.run(1.0)
     assert node.sc_state is m.ScState.OFF
 
@@ -131,17 +135,22 @@ def test_bogie_fidelity_drives_through_the_vcu(
 
     trackside, onboard = zenoh_pair
     node = OnboardNode(
-        OnboardSettings(vehicle_id="URV1", fidelity="bogie"), session=onboard, clock=SimClock(),
+        OnboardSettings(vehicle_id="URV1", fidelity="bogie"),
+        session=onboard,
+        clock=SimClock(),
         track_map=TrackMap(load_seed_line("bologna-ring")),
-    )  # fmt: skip
+    )
     try:
-        assert isinstance(node.plant.dynamics, BogiePlant) and node.vcu is not None
+        assert isinstance(node.plant.dynamics, BogiePlant)
+        assert node.vcu is not None
         assert wait_for(lambda: _ping(trackside))
         target = 30 / 3.6
         ack = request(
-            trackside, COMMAND, _command(m.RemoteDrivingTargetCommand(target_speed_mps=target)),
+            trackside,
+            COMMAND,
+            _command(m.RemoteDrivingTargetCommand(target_speed_mps=target)),
             vehicle="URV1",
-        )  # fmt: skip
+        )
         assert ack.accepted
         LockstepOperator(trackside, node).run(60.0)
         assert node.plant.speed_mps == pytest.approx(target, abs=0.5)

@@ -48,7 +48,7 @@ def test_speed_limit_shortens_the_blends() -> None:
 
 
 @pytest.mark.parametrize(
-    "distance, duration, limit",
+    ("distance", "duration", "limit"),
     [(1000.0, 99.0, 10.0), (1000.0, 40.0, 50.0), (0.0, 10.0, 10.0), (1000.0, 105.0, 10.0)],
 )
 def test_infeasible_segments(distance: float, duration: float, limit: float) -> None:
@@ -60,10 +60,10 @@ def test_field_test_plan_on_the_ring() -> None:
     ring = TrackMap(load_seed_line("bologna-ring"))
     start = 200.0
     stops = [
-        (1775.0, 300.0, 320.0),   # east
-        (3200.0, 550.0, 570.0),   # south
+        (1775.0, 300.0, 320.0),  # east
+        (3200.0, 550.0, 570.0),  # south
         (6050.0, 1000.0, 1000.0),  # north, a lap later
-    ]  # fmt: skip
+    ]
     plan = plan_legs(ring, start_chainage_m=start, stops=stops, cap_mps=CAP_40_KMH)
     times = np.arange(0.0, plan.end_s + 0.05, 0.1)
     reference = np.array([plan.reference(t) for t in times])
@@ -82,6 +82,8 @@ def test_an_impossible_leg_names_itself() -> None:
     ring = TrackMap(load_seed_line("bologna-ring"))
     with pytest.raises(InfeasibleLegError, match="leg 1"):
         plan_legs(
-            ring, start_chainage_m=200.0, stops=[(1775.0, 300.0, 320.0), (3200.0, 340.0, 360.0)],
+            ring,
+            start_chainage_m=200.0,
+            stops=[(1775.0, 300.0, 320.0), (3200.0, 340.0, 360.0)],
             cap_mps=CAP_40_KMH,
-        )  # fmt: skip
+        )

@@ -78,9 +78,12 @@ def test_rd_controller_tracks_a_target_speed_uphill() -> None:
     for step in range(12_000):  # 120 s at 10 ms, controller at 100 ms
         if step % 10 == 0:
             demand = controller.step(
-                0.1, target_speed_mps=target, speed_mps=model.speed_mps, gradient_permille=4.0,
+                0.1,
+                target_speed_mps=target,
+                speed_mps=model.speed_mps,
+                gradient_permille=4.0,
                 force_limits_n=model.force_limits_n(model.speed_mps),
-            )  # fmt: skip
+            )
         model.step(0.01, demand, gradient_permille=4.0)
     assert model.speed_mps == pytest.approx(target, abs=0.05)
 
@@ -100,9 +103,12 @@ def test_a_power_limited_climb_to_the_target_does_not_overshoot(band_mps: float)
     for step in range(30_000):  # 300 s at 10 ms, controller at 200 ms
         if step % 20 == 0:
             demand = controller.step(
-                0.2, target_speed_mps=target, speed_mps=model.speed_mps, gradient_permille=0.0,
+                0.2,
+                target_speed_mps=target,
+                speed_mps=model.speed_mps,
+                gradient_permille=0.0,
                 force_limits_n=model.force_limits_n(model.speed_mps),
-            )  # fmt: skip
+            )
         model.step(0.01, demand)
         top = max(top, model.speed_mps)
     assert model.speed_mps == pytest.approx(target, abs=0.01)
@@ -121,9 +127,12 @@ def test_rd_controller_brings_the_vehicle_to_a_stop() -> None:
     for step in range(6_000):
         if step % 10 == 0:
             demand = controller.step(
-                0.1, target_speed_mps=0.0, speed_mps=model.speed_mps, gradient_permille=0.0,
+                0.1,
+                target_speed_mps=0.0,
+                speed_mps=model.speed_mps,
+                gradient_permille=0.0,
                 force_limits_n=model.force_limits_n(model.speed_mps),
-            )  # fmt: skip
+            )
         model.step(0.01, demand)
     assert model.speed_mps == 0.0
 
@@ -143,7 +152,10 @@ def test_align_gives_a_bumpless_start() -> None:
     controller = RemoteDrivingController(mass_kg=P.mass_kg, rolling_coefficient=0.002)
     controller.align(7_500.0, speed_mps=12.0, gradient_permille=3.0)
     first = controller.step(
-        0.1, target_speed_mps=12.0, speed_mps=12.0, gradient_permille=3.0,
+        0.1,
+        target_speed_mps=12.0,
+        speed_mps=12.0,
+        gradient_permille=3.0,
         force_limits_n=(-15_000.0, 30_000.0),
-    )  # fmt: skip
+    )
     assert first == pytest.approx(7_500.0, abs=1.0)

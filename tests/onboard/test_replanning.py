@@ -35,18 +35,25 @@ def test_a_shortened_movement_authority_stops_the_train_before_the_new_end() -> 
             end_of_authority_m = plant.position_m + 300.0
             driving = AutonomousDriving(
                 replan_from_state(
-                    ring, URV_PARAMETERS, now_s=now, start_chainage_m=START_M,
-                    distance_m=plant.position_m, speed_mps=plant.speed_mps,
+                    ring,
+                    URV_PARAMETERS,
+                    now_s=now,
+                    start_chainage_m=START_M,
+                    distance_m=plant.position_m,
+                    speed_mps=plant.speed_mps,
                     stop_distance_m=end_of_authority_m - EOA_MARGIN_M - plant.position_m,
                     cruise_mps=plant.speed_mps,
                 ),
-                URV_PARAMETERS, controller,
-            )  # fmt: skip
+                URV_PARAMETERS,
+                controller,
+            )
             controller.reset()
         force = driving.force_n(
-            now, distance_m=plant.position_m, speed_mps=plant.speed_mps,
+            now,
+            distance_m=plant.position_m,
+            speed_mps=plant.speed_mps,
             applied_force_n=plant.applied_force_n,
-        )  # fmt: skip
+        )
         for _ in range(round(CONTROL_S / PLANT_S)):
             chainage = ring.normalise(START_M + plant.position_m)
             plant.step(PLANT_S, force, gradient_permille=ring.gradient_permille(chainage))
@@ -85,24 +92,31 @@ def _drive(
             force = -URV_PARAMETERS.max_brake_force_n  # the ETCS service brake
         else:
             force = driving.force_n(
-                now, distance_m=plant.position_m, speed_mps=plant.speed_mps,
+                now,
+                distance_m=plant.position_m,
+                speed_mps=plant.speed_mps,
                 applied_force_n=plant.applied_force_n,
-            )  # fmt: skip
+            )
         for _ in range(round(CONTROL_S / PLANT_S)):
             chainage = ring.normalise(START_M + plant.position_m)
             plant.step(
-                PLANT_S, force, gradient_permille=ring.gradient_permille(chainage),
+                PLANT_S,
+                force,
+                gradient_permille=ring.gradient_permille(chainage),
                 curve_radius_m=ring.curve_radius_m(chainage),
-            )  # fmt: skip
+            )
         trace.append((now + CONTROL_S, plant.position_m, plant.speed_mps))
     return plant, trace
 
 
 def _field_plan(ring: TrackMap) -> OdpPlan:
     plan, _ = plan_energy_legs(
-        ring, URV_PARAMETERS, start_chainage_m=START_M, stops=[(1775.0, 300.0, 300.0)],
+        ring,
+        URV_PARAMETERS,
+        start_chainage_m=START_M,
+        stops=[(1775.0, 300.0, 300.0)],
         cap_mps=CAP_MPS,
-    )  # fmt: skip
+    )
     return plan
 
 
@@ -115,10 +129,16 @@ def test_a_new_speed_restriction_is_obeyed_and_the_stop_still_reached() -> None:
     def new_restriction(now: float, plant: PointMassModel) -> OdpPlan:
         ring.add_temporary_speed_restriction(tsr)
         return replan_from_state(
-            ring, URV_PARAMETERS, now_s=now, start_chainage_m=START_M,
-            distance_m=plant.position_m, speed_mps=plant.speed_mps,
-            stop_distance_m=1775.0 - plant.position_m, cruise_mps=CAP_MPS, arrival_s=330.0,
-        )  # fmt: skip
+            ring,
+            URV_PARAMETERS,
+            now_s=now,
+            start_chainage_m=START_M,
+            distance_m=plant.position_m,
+            speed_mps=plant.speed_mps,
+            stop_distance_m=1775.0 - plant.position_m,
+            cruise_mps=CAP_MPS,
+            arrival_s=330.0,
+        )
 
     plant, trace = _drive(
         ring, _field_plan(ring), until_s=345.0, event_s=60.0, on_event=new_restriction
@@ -135,10 +155,15 @@ def test_an_obstacle_reported_ahead_stops_the_train_before_it() -> None:
     def obstacle_ahead(now: float, plant: PointMassModel) -> OdpPlan:
         obstacle.append(plant.position_m + 250.0)  # seen 250 m ahead
         return replan_from_state(
-            ring, URV_PARAMETERS, now_s=now, start_chainage_m=START_M,
-            distance_m=plant.position_m, speed_mps=plant.speed_mps,
-            stop_distance_m=250.0 - EOA_MARGIN_M, cruise_mps=plant.speed_mps,
-        )  # fmt: skip
+            ring,
+            URV_PARAMETERS,
+            now_s=now,
+            start_chainage_m=START_M,
+            distance_m=plant.position_m,
+            speed_mps=plant.speed_mps,
+            stop_distance_m=250.0 - EOA_MARGIN_M,
+            cruise_mps=plant.speed_mps,
+        )
 
     plant, _ = _drive(ring, _field_plan(ring), until_s=200.0, event_s=90.0, on_event=obstacle_ahead)
     assert plant.speed_mps == 0.0
@@ -152,10 +177,16 @@ def test_after_an_etcs_intervention_the_train_is_replanned_to_its_stop() -> None
 
     def released(now: float, plant: PointMassModel) -> OdpPlan:
         return replan_from_state(
-            ring, URV_PARAMETERS, now_s=now, start_chainage_m=START_M,
-            distance_m=plant.position_m, speed_mps=plant.speed_mps,
-            stop_distance_m=1775.0 - plant.position_m, cruise_mps=CAP_MPS, arrival_s=300.0,
-        )  # fmt: skip
+            ring,
+            URV_PARAMETERS,
+            now_s=now,
+            start_chainage_m=START_M,
+            distance_m=plant.position_m,
+            speed_mps=plant.speed_mps,
+            stop_distance_m=1775.0 - plant.position_m,
+            cruise_mps=CAP_MPS,
+            arrival_s=300.0,
+        )
 
     plant, trace = _drive(
         ring, _field_plan(ring), until_s=310.0, event_s=100.0, on_event=released, braking_s=6.0
@@ -163,5 +194,6 @@ def test_after_an_etcs_intervention_the_train_is_replanned_to_its_stop() -> None
     slowest = min(v for t, _, v in trace if 100.0 <= t <= 106.5)
     assert slowest < 6.0  # the intervention did slow the train
     stopped = [t for t, d, v in trace if v == 0.0 and abs(d - 1775.0) <= 0.5]
-    assert stopped and abs(stopped[0] - 300.0) <= 2.0
+    assert stopped
+    assert abs(stopped[0] - 300.0) <= 2.0
     assert abs(plant.position_m - 1775.0) <= 0.5

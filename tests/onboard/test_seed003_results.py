@@ -92,7 +92,8 @@ def test_acceleration_split_follows_k_d(forwards: ManoeuvreRecord) -> None:
     assert equal.sum() > 3 * STEPS_PER_S
     assert_allclose(leading[equal], trailing[equal], atol=1.0)
     assert_allclose(total[equal], 20_000.0 * BOGIE.wheel_radius_m, rtol=1e-3)
-    assert not (forwards.slip_front.any() or forwards.slip_rear.any())
+    assert not (forwards.slip_front.any())
+    assert not (forwards.slip_rear.any())
     assert forwards.speed_mps[-1] == pytest.approx(15.8, abs=0.3)
 
 
@@ -198,7 +199,8 @@ def test_after_the_patch_the_vehicle_accelerates_as_on_dry_rail(
     after = slice(end + 150, end + 350)
     wheel = friction_drop.wheel_speed_front_mps[after]
     assert_allclose(wheel, friction_drop.speed_mps[after], atol=0.03)
-    assert not (friction_drop.slip_front[after].any() or friction_drop.slip_rear[after].any())
+    assert not (friction_drop.slip_front[after].any())
+    assert not (friction_drop.slip_rear[after].any())
     speed = friction_drop.speed_mps
     acceleration = (speed[end + 350] - speed[end + 150]) / 2.0
     v0, v1 = speed[end + 150], speed[end + 350]

@@ -22,12 +22,15 @@ def accept(timeout_s: float = 3.0) -> m.SessionAccept:
 def test_an_accepted_handshake_establishes_the_session_with_the_tracksides_timing() -> None:
     c = client()
     request = c.request(0.0, track_data_version="abc")
-    assert request is not None and request.supported_versions == (1,)
+    assert request is not None
+    assert request.supported_versions == (1,)
     assert c.state is ClientState.CSR
     assert c.request(0.1, track_data_version="abc") is None  # one request at a time
     c.on_response(accept(timeout_s=2.5), 0.1)
-    assert c.established and c.trackside_id == "ts-1"
-    assert c.response_timeout_s == 2.5 and c.status_interval_s == 0.2
+    assert c.established
+    assert c.trackside_id == "ts-1"
+    assert c.response_timeout_s == 2.5
+    assert c.status_interval_s == 0.2
 
 
 def test_a_rejection_keeps_its_reason_and_the_retry_waits_thirty_seconds() -> None:
@@ -55,22 +58,30 @@ def test_one_status_report_outstanding_and_loss_without_acknowledgements() -> No
     assert c.counters.stale == 1
     assert not c.step(1.2)  # heard at 0.25, timeout 1 s
     assert c.step(1.3)
-    assert c.state is ClientState.NCE and c.counters.lost == 1
+    assert c.state is ClientState.NCE
+    assert c.counters.lost == 1
 
 
 def test_stale_and_misaddressed_journey_profiles_are_rejected_and_counted() -> None:
     c = client()
     point = m.TimingPoint(
-        id="tp", position_m=100.0, kind=m.TimingPointKind.STOPPING, arrival_time_s=60.0,
+        id="tp",
+        position_m=100.0,
+        kind=m.TimingPointKind.STOPPING,
+        arrival_time_s=60.0,
         end_of_journey=True,
-    )  # fmt: skip
+    )
 
     def profile(version: int, vehicle: str = "URV1") -> m.JourneyProfile:
         return m.JourneyProfile(
-            vehicle_id=vehicle, journey_id="j1", version=version,
-            status=m.JourneyProfileStatus.VALID, line_id="bologna-ring",
-            track_data_version="abc", timing_points=(point,),
-        )  # fmt: skip
+            vehicle_id=vehicle,
+            journey_id="j1",
+            version=version,
+            status=m.JourneyProfileStatus.VALID,
+            line_id="bologna-ring",
+            track_data_version="abc",
+            timing_points=(point,),
+        )
 
     assert c.on_journey_profile(profile(2), 0.0)
     assert not c.on_journey_profile(profile(2), 1.0)
@@ -87,12 +98,16 @@ def test_termination_by_either_side(by: str) -> None:
     request = c.request(0.0, track_data_version=None)
     assert request is not None
     c.on_response(manager.on_request(request, 0.0), 0.0)
-    assert c.established and "URV1" in manager.sessions
+    assert c.established
+    assert "URV1" in manager.sessions
     if by == "onboard":
         termination = c.terminate("end of mission", 5.0)
-        assert termination is not None and manager.on_termination(termination)
+        assert termination is not None
+        assert manager.on_termination(termination)
     else:
         termination = manager.terminate("URV1", "maintenance")
-        assert termination is not None and c.on_termination(termination, 5.0)
-    assert c.state is ClientState.CST and "URV1" not in manager.sessions
+        assert termination is not None
+        assert c.on_termination(termination, 5.0)
+    assert c.state is ClientState.CST
+    assert "URV1" not in manager.sessions
     assert c.request(5.0 + RETRY_S, track_data_version=None) is not None

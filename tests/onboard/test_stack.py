@@ -30,8 +30,14 @@ class StandingLocator:
 
 def stack(line: TrackMap = RING, position_m: float = 300.0) -> OnboardStack:
     limits = PointMassModel(URV_PARAMETERS).force_limits_n
-    result = OnboardStack(line, StandingLocator(position_m), URV_PARAMETERS, limits,
-                          start_position_m=position_m, energy_plans=False)  # fmt: skip
+    result = OnboardStack(
+        line,
+        StandingLocator(position_m),
+        URV_PARAMETERS,
+        limits,
+        start_position_m=position_m,
+        energy_plans=False,
+    )
     result.track_database.record_trackside_version(
         m.LineVersionReply(line_id=line.line.id, version=line.version)
     )
@@ -40,21 +46,32 @@ def stack(line: TrackMap = RING, position_m: float = 300.0) -> OnboardStack:
 
 def profile(arrival_s: float, *, vehicle: str = "URV1", version: int = 1) -> m.JourneyProfile:
     point = m.TimingPoint(
-        id="east", position_m=1975.0, kind=m.TimingPointKind.STOPPING, arrival_time_s=arrival_s,
+        id="east",
+        position_m=1975.0,
+        kind=m.TimingPointKind.STOPPING,
+        arrival_time_s=arrival_s,
         end_of_journey=True,
-    )  # fmt: skip
+    )
     return m.JourneyProfile(
-        vehicle_id=vehicle, journey_id="j", version=version, status=m.JourneyProfileStatus.VALID,
-        line_id="bologna-ring", track_data_version=RING.version, max_speed_mps=40 / 3.6,
+        vehicle_id=vehicle,
+        journey_id="j",
+        version=version,
+        status=m.JourneyProfileStatus.VALID,
+        line_id="bologna-ring",
+        track_data_version=RING.version,
+        max_speed_mps=40 / 3.6,
         timing_points=(point,),
-    )  # fmt: skip
+    )
 
 
 def test_a_journey_whose_leg_cannot_be_run_in_time_is_rejected_with_the_reason() -> None:
     onboard = stack()
     accepted, reason = onboard.review_journey(profile(arrival_s=60.0))
-    assert not accepted and reason is not None and "infeasible" in reason
-    assert onboard.journey_plan is None and onboard.track_database.journey is None
+    assert not accepted
+    assert reason is not None
+    assert "infeasible" in reason
+    assert onboard.journey_plan is None
+    assert onboard.track_database.journey is None
     assert onboard.review_journey(profile(arrival_s=300.0)) == (True, None)
     assert onboard.journey_plan is not None
     assert onboard.journey_plan.stops[0].distance_m == pytest.approx(1975.0 - 300.0)
@@ -64,21 +81,25 @@ def test_a_journey_on_other_track_data_is_rejected() -> None:
     onboard = stack()
     other = profile(300.0).model_copy(update={"track_data_version": "0" * 64})
     accepted, reason = onboard.review_journey(other)
-    assert not accepted and reason == "journey planned on other track data"
+    assert not accepted
+    assert reason == "journey planned on other track data"
 
 
 def test_requests_are_refused_with_reasons_in_the_wrong_state() -> None:
     onboard = stack()
     engage = onboard.refusal(m.EngageCommand())
-    assert engage is not None and "no journey profile" in engage
+    assert engage is not None
+    assert "no journey profile" in engage
     onboard.review_journey(profile(300.0))
     onboard.step_etcs(0.0)
     onboard.step_control(0.0)
     engage = onboard.refusal(m.EngageCommand())
-    assert engage is not None and "not ready" in engage  # no session, ETCS in SR
+    assert engage is not None
+    assert "not ready" in engage
     assert onboard.refusal(m.DisengageCommand()) == "ATO-OB is not engaged"
     fast = onboard.refusal(m.RemoteDrivingTargetCommand(target_speed_mps=60.0))
-    assert fast is not None and "above line speed" in fast
+    assert fast is not None
+    assert "above line speed" in fast
 
 
 def test_an_rbc_movement_authority_reaches_etcs() -> None:
@@ -86,15 +107,20 @@ def test_an_rbc_movement_authority_reaches_etcs() -> None:
     onboard = stack(line, position_m=1000.0)
     onboard.step_etcs(0.0)
     message = m.MovementAuthorityMessage(
-        vehicle_id="URV1", ma_id=1, change=m.MovementAuthorityChange.ISSUED, issued_at_s=0.0,
-        line_id=line.line.id, line_version=line.version,
+        vehicle_id="URV1",
+        ma_id=1,
+        change=m.MovementAuthorityChange.ISSUED,
+        issued_at_s=0.0,
+        line_id=line.line.id,
+        line_version=line.version,
         authority=m.MovementAuthorityExtent(start_m=1000.0, end_of_authority_m=6000.0),
-    )  # fmt: skip
+    )
     assert onboard.receive_movement_authority(message, 0.1) == "new"
     output = onboard.etcs.step_on_sensors(0.2, [])  # standing at its start
     assert output.end_of_authority_distance_m == pytest.approx(5000.0, abs=1.0)
-    revoked = message.model_copy(update={"ma_id": 2, "authority": None,
-                                          "change": m.MovementAuthorityChange.REVOKED})  # fmt: skip
+    revoked = message.model_copy(
+        update={"ma_id": 2, "authority": None, "change": m.MovementAuthorityChange.REVOKED}
+    )
     assert onboard.receive_movement_authority(revoked, 0.3) == "revoked: emergency stop"
 
 
@@ -119,9 +145,13 @@ def test_an_rbc_speed_restriction_lowers_the_mrsp_until_revoked() -> None:
     track_map = onboard.track_map
     before = track_map.mrsp_mps(1200.0)
     tsr = m.SpeedRestrictionMessage(
-        vehicle_id="URV1", restriction_id="works", line_id="bologna-ring", start_m=1100.0,
-        end_m=1400.0, speed_mps=20 / 3.6,
-    )  # fmt: skip
+        vehicle_id="URV1",
+        restriction_id="works",
+        line_id="bologna-ring",
+        start_m=1100.0,
+        end_m=1400.0,
+        speed_mps=20 / 3.6,
+    )
     assert "works" in onboard.receive_speed_restriction(tsr, 10.0)
     assert track_map.mrsp_mps(1200.0) == pytest.approx(20 / 3.6, abs=1e-9)
     assert track_map.mrsp_mps(1500.0) == pytest.approx(before, abs=1e-9)

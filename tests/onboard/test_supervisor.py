@@ -22,7 +22,7 @@ def _run(
 
 
 @pytest.mark.parametrize(
-    "start, mode, expected",
+    ("start", "mode", "expected"),
     [
         (ScState.OFF, ModeRequest.REMOTE, ScState.RD),
         (ScState.OFF, ModeRequest.AUTONOMOUS, ScState.AD),
@@ -72,8 +72,12 @@ def test_hand_overs_complete_in_bounded_time() -> None:
     _run(sc, sc.handover_s + DT, 10.0, rd=1000.0, ad=3000.0)
     assert sc.state is ScState.RD
     assert [t.target for t in sc.transitions] == [
-        ScState.RD, ScState.HRD2AD, ScState.AD, ScState.HAD2RD, ScState.RD,
-    ]  # fmt: skip
+        ScState.RD,
+        ScState.HRD2AD,
+        ScState.AD,
+        ScState.HAD2RD,
+        ScState.RD,
+    ]
 
 
 def test_the_applied_force_moves_without_jumps() -> None:
@@ -89,23 +93,28 @@ def test_the_applied_force_moves_without_jumps() -> None:
     forces = before + during + back + again
     jumps = [abs(b - a) for a, b in zip(forces, forces[1:], strict=False)]
     assert max(jumps) <= 0.02 * U_RANGE_N
-    assert forces[0] == 2_000.0 and forces[-1] == 10_000.0
+    assert forces[0] == 2_000.0
+    assert forces[-1] == 10_000.0
 
 
 def test_off_holds_the_vehicle() -> None:
     sc = SupervisoryController()
     assert sc.step(DT, 0.0, remote_force_n=5.0, autonomous_force_n=5.0) is None
-    assert not sc.needs_remote and not sc.needs_autonomous
+    assert not sc.needs_remote
+    assert not sc.needs_autonomous
 
 
 def test_which_controllers_run() -> None:
-    assert _in_state(ScState.RD).needs_remote and not _in_state(ScState.RD).needs_autonomous
-    assert _in_state(ScState.AD).needs_autonomous and not _in_state(ScState.AD).needs_remote
+    assert _in_state(ScState.RD).needs_remote
+    assert not _in_state(ScState.RD).needs_autonomous
+    assert _in_state(ScState.AD).needs_autonomous
+    assert not _in_state(ScState.AD).needs_remote
     for state in (ScState.HRD2AD, ScState.HAD2RD):
         sc = _in_state(state)
-        assert sc.needs_remote and sc.needs_autonomous
+        assert sc.needs_remote
+        assert sc.needs_autonomous
 
 
 def test_bad_handover_time() -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="positive duration"):
         SupervisoryController(handover_s=0.0)

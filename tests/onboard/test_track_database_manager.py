@@ -21,15 +21,23 @@ RING = TrackMap(load_seed_line("bologna-ring"))
 
 def _profile(version: str = RING.version, **overrides: object) -> m.JourneyProfile:
     values: dict[str, object] = {
-        "vehicle_id": "URV1", "journey_id": "lap", "version": 1,
-        "status": m.JourneyProfileStatus.VALID, "line_id": "bologna-ring",
+        "vehicle_id": "URV1",
+        "journey_id": "lap",
+        "version": 1,
+        "status": m.JourneyProfileStatus.VALID,
+        "line_id": "bologna-ring",
         "track_data_version": version,
         "timing_points": (
             m.TimingPoint(id="east", position_m=1975.0, kind="stopping", arrival_time_s=300.0),
-            m.TimingPoint(id="north", position_m=550.0, kind="stopping", arrival_time_s=900.0,
-                          end_of_journey=True),
+            m.TimingPoint(
+                id="north",
+                position_m=550.0,
+                kind="stopping",
+                arrival_time_s=900.0,
+                end_of_journey=True,
+            ),
         ),
-    }  # fmt: skip
+    }
     return m.JourneyProfile.model_validate(values | overrides)
 
 
@@ -45,12 +53,13 @@ def test_accepts_a_journey_on_matching_track_data() -> None:
     manager = _manager(RING.version)
     assert manager.versions_match
     review = manager.review(_profile())
-    assert review.accepted and review.reason is None
+    assert review.accepted
+    assert review.reason is None
     assert manager.journey is not None
 
 
 @pytest.mark.parametrize(
-    "trackside_version, profile, reason",
+    ("trackside_version", "profile", "reason"),
     [
         (None, _profile(), "not known"),
         ("0" * 64, _profile(), "differ from the trackside"),
@@ -64,7 +73,8 @@ def test_refuses_with_a_reason(
 ) -> None:
     review = _manager(trackside_version).review(profile)
     assert not review.accepted
-    assert review.reason is not None and reason in review.reason
+    assert review.reason is not None
+    assert reason in review.reason
 
 
 def test_a_reply_about_another_line_is_ignored() -> None:
@@ -109,7 +119,8 @@ def test_node_checks_versions_and_acknowledges_journeys(
     ):
         bad = _profile(version="e" * 64, journey_id="stale")
         assert wait_for(lambda: (journeys.put(bad), node.run(0.05), bool(acks))[2])
-        assert not acks[0].accepted and "other track data" in (acks[0].reason or "")
+        assert not acks[0].accepted
+        assert "other track data" in (acks[0].reason or "")
         journeys.put(_profile())
         assert wait_for(lambda: (node.run(0.05), any(a.accepted for a in acks))[1])
     assert node.status(node.clock.now_ns).journey_id == "lap"

@@ -79,7 +79,8 @@ def test_slip_cuts_traction_then_restarts_lower_and_ramps_back() -> None:
     # The rear axle spins up 2 m/s above the fused speed.
     slipping = replace(steady, wheel_speed_rear_radps=22.0 / RADIUS)
     cut = run(vcu, slipping, steps=10)
-    assert vcu.status.slip_rear and not vcu.status.slip_front
+    assert vcu.status.slip_rear
+    assert not vcu.status.slip_front
     assert_allclose(cut.motor_torque_rear_nm, 0.0, atol=1e-12)
     assert_allclose(cut.motor_torque_front_nm, per_axle, atol=1e-9)
     # Adhesion back: the cut-off lasts slip_cutoff_s, then half the old torque, ramped up.

@@ -28,8 +28,10 @@ KMH = 1 / 3.6
 def _node(onboard: zenoh.Session, **settings: object) -> OnboardNode:
     return OnboardNode(
         OnboardSettings(vehicle_id="URV1", **settings),  # type: ignore[arg-type]
-        session=onboard, clock=SimClock(), track_map=RING,
-    )  # fmt: skip
+        session=onboard,
+        clock=SimClock(),
+        track_map=RING,
+    )
 
 
 @pytest.fixture
@@ -85,11 +87,14 @@ def test_power_up_holds_the_eb_until_the_operator_confirms_the_rearm(
     hands.present = False
     node.run(1.0)
     vital = _vital(node)
-    assert vital.eb_commanded and vital.brake_state == "standstill"
+    assert vital.eb_commanded
+    assert vital.brake_state == "standstill"
     rearm = _pending(node, m.OperatorRequestKind.EB_REARM)
     vigilance = _pending(node, m.OperatorRequestKind.VIGILANCE)
-    assert rearm is not None and not rearm.confirmed
-    assert vigilance is not None and vigilance.deadline_s == pytest.approx(10.0)
+    assert rearm is not None
+    assert not rearm.confirmed
+    assert vigilance is not None
+    assert vigilance.deadline_s == pytest.approx(10.0)
     answer = m.OperatorConfirmCommand(request=vigilance.kind, number=vigilance.number)
     assert hands.command(answer).accepted
     # The EB from another source keeps the ATO-OB from being available.
@@ -99,10 +104,12 @@ def test_power_up_holds_the_eb_until_the_operator_confirms_the_rearm(
     assert node.plant.speed_mps == 0.0
     # A late or wrong answer is refused with the reason, a right one is taken.
     wrong = hands.command(m.OperatorConfirmCommand(request=rearm.kind, number=rearm.number + 1))
-    assert not wrong.accepted and "not the pending one" in (wrong.reason or "")
+    assert not wrong.accepted
+    assert "not the pending one" in (wrong.reason or "")
     assert hands.command(m.OperatorConfirmCommand(request=rearm.kind, number=rearm.number)).accepted
     node.run(5.0)
-    assert _vital(node).brake_state == "released" and not _vital(node).eb_commanded
+    assert _vital(node).brake_state == "released"
+    assert not _vital(node).eb_commanded
     assert node.plant.speed_mps > 1.0  # the target set while braked applies after the rearm
 
 
@@ -117,7 +124,8 @@ def test_operator_emergency_brake_stops_the_train_and_needs_a_rearm(
     hands.present = False  # the operator does not rearm yet
     node.run(0.5)
     vital = _vital(node)
-    assert vital.eb_commanded and vital.brake_state == "braking"
+    assert vital.eb_commanded
+    assert vital.brake_state == "braking"
     assert 1 in vital.eb_conditions
     assert _seen(events, "vc.eb_commanded")
     node.run(15.0)  # 8.3 m/s at about 0.93 m/s²: 9 s and the 450 ms pipe
@@ -141,14 +149,16 @@ def test_unanswered_vigilance_brakes_and_decays(hands: LockstepOperator) -> None
     hands.present = False  # the next request comes at 30 s and is not answered
     node.run(16.0)
     vital = _vital(node)
-    assert vital.system_decay and "vigilance_timeout" in vital.decay_reasons
+    assert vital.system_decay
+    assert "vigilance_timeout" in vital.decay_reasons
     assert vital.eb_commanded
     node.run(15.0)
     assert node.plant.speed_mps == 0.0
     # In System Decay nothing is asked of the operator but vitality: the train stays stopped.
     hands.present = True
     hands.run(5.0)
-    assert _vital(node).eb_commanded and node.plant.speed_mps == 0.0
+    assert _vital(node).eb_commanded
+    assert node.plant.speed_mps == 0.0
 
 
 def test_etcs_isolation_then_overspeed_above_30_kmh_brakes_then_insertion(
@@ -163,7 +173,8 @@ def test_etcs_isolation_then_overspeed_above_30_kmh_brakes_then_insertion(
     confirm = m.OperatorConfirmCommand(request=isolation.kind, number=isolation.number)
     assert hands.command(confirm).accepted
     hands.run(1.0)
-    assert etcs.mode is m.EtcsMode.IS and _vital(node).etcs_isolated
+    assert etcs.mode is m.EtcsMode.IS
+    assert _vital(node).etcs_isolated
     assert _seen(events, "vc.etcs_isolated")
     # With ETCS isolated the VC supervises 30 km/h itself (condition 6, scenario L).
     _drive(hands, 28.0)
@@ -192,7 +203,8 @@ def test_the_vc_forwards_balise_headers_read_by_etcs(hands: LockstepOperator) ->
     assert hands.run_until(lambda: node.stack.etcs.mode is m.EtcsMode.FS, 60.0)
     hands.run(0.2)
     request = node.stack.vital_links[0].last_request
-    assert request is not None and request.last_balise_header is not None
+    assert request is not None
+    assert request.last_balise_header is not None
     first_group = RING.line.balise_groups[0]
     assert request.last_balise_header.nid_bg == first_group.id
 
@@ -205,7 +217,9 @@ def test_ato_ob_failure_status_brakes_and_decays(hands: LockstepOperator) -> Non
         link.reports_failure = True  # injected: the ATO-OB reports FAIL (scenario B)
     hands.run(0.1)
     vital = _vital(node)
-    assert vital.eb_commanded and vital.system_decay and "ato_ob_fail" in vital.decay_reasons
+    assert vital.eb_commanded
+    assert vital.system_decay
+    assert "ato_ob_fail" in vital.decay_reasons
 
 
 def test_two_vc_boards_in_2oo2_run_and_brake_together(
@@ -220,7 +234,9 @@ def test_two_vc_boards_in_2oo2_run_and_brake_together(
         _drive(hands, 30.0)
         hands.run(30.0)
         vital = _vital(node)
-        assert vital.replicas == 2 and not vital.pair_tripped and not vital.eb_commanded
+        assert vital.replicas == 2
+        assert not vital.pair_tripped
+        assert not vital.eb_commanded
         assert node.plant.speed_mps == pytest.approx(30 * KMH, abs=0.5)
         assert hands.command(m.EmergencyBrakeCommand()).accepted
         hands.run(12.0)
@@ -249,8 +265,14 @@ def test_lockstep_runs_with_the_vc_are_identical(
             for _ in range(40):
                 hands.run(0.5)
                 vital = _vital(node)
-                trace.append((node.plant.position_m, node.plant.speed_mps, vital.brake_state,
-                              vital.eb_commanded))  # fmt: skip
+                trace.append(
+                    (
+                        node.plant.position_m,
+                        node.plant.speed_mps,
+                        vital.brake_state,
+                        vital.eb_commanded,
+                    )
+                )
             return trace
         finally:
             node.close()

@@ -22,44 +22,69 @@ def _enum(enum: Any) -> st.SearchStrategy[Any]:
 state_names = st.from_regex(r"^[a-z0-9_]{1,40}$", fullmatch=True)
 operator_requests = st.builds(
     m.OperatorRequest,
-    kind=_enum(m.OperatorRequestKind), number=st.integers(0, 255), raised_s=non_negative,
-    deadline_s=st.none() | non_negative, confirmed=st.booleans(),
-)  # fmt: skip
+    kind=_enum(m.OperatorRequestKind),
+    number=st.integers(0, 255),
+    raised_s=non_negative,
+    deadline_s=st.none() | non_negative,
+    confirmed=st.booleans(),
+)
 vital_control_statuses = st.builds(
     m.VitalControlStatus,
-    eb_commanded=st.booleans(), system_decay=st.booleans(),
+    eb_commanded=st.booleans(),
+    system_decay=st.booleans(),
     decay_reasons=st.lists(state_names, max_size=3).map(tuple),
     eb_conditions=st.lists(st.integers(1, 6), max_size=6, unique=True).map(tuple),
-    etcs_isolated=st.booleans(), supervision_state=state_names, brake_state=state_names,
-    etcs_state=state_names, standstill=st.booleans(), odometry_efficient=st.booleans(),
-    speed_mps=st.none() | non_negative, replicas=st.integers(1, 2), pair_tripped=st.booleans(),
+    etcs_isolated=st.booleans(),
+    supervision_state=state_names,
+    brake_state=state_names,
+    etcs_state=state_names,
+    standstill=st.booleans(),
+    odometry_efficient=st.booleans(),
+    speed_mps=st.none() | non_negative,
+    replicas=st.integers(1, 2),
+    pair_tripped=st.booleans(),
     operator_requests=st.lists(operator_requests, max_size=4).map(tuple),
-)  # fmt: skip
+)
 
 status_reports = st.builds(
     m.StatusReport,
-    vehicle_id=vehicle_ids, seq=counters, sim_time_s=non_negative, line_id=names,
-    position_m=finite, speed_mps=finite, acceleration_mps2=finite, traction_force_n=finite,
-    ato_state=_enum(m.AtoState), etcs_mode=_enum(m.EtcsMode), sc_state=_enum(m.ScState),
+    vehicle_id=vehicle_ids,
+    seq=counters,
+    sim_time_s=non_negative,
+    line_id=names,
+    position_m=finite,
+    speed_mps=finite,
+    acceleration_mps2=finite,
+    traction_force_n=finite,
+    ato_state=_enum(m.AtoState),
+    etcs_mode=_enum(m.EtcsMode),
+    sc_state=_enum(m.ScState),
     supervision_status=_enum(m.SupervisionStatus),
     target_speed_mps=st.none() | non_negative,
     journey_id=st.none() | names,
     position_confidence_m=st.none() | non_negative,
     next_timing_point_id=st.none() | names,
     arrivals=st.lists(
-        st.builds(m.ArrivalEstimate, timing_point_id=names, scheduled_s=non_negative,
-                  estimated_s=non_negative),
+        st.builds(
+            m.ArrivalEstimate,
+            timing_point_id=names,
+            scheduled_s=non_negative,
+            estimated_s=non_negative,
+        ),
         max_size=3,
     ).map(tuple),
     vital_control=st.none() | vital_control_statuses,
-)  # fmt: skip
+)
 
 events = st.builds(
     m.Event,
-    vehicle_id=vehicle_ids, seq=counters, sim_time_s=non_negative,
-    severity=_enum(m.EventSeverity), code=st.from_regex(r"^[a-z0-9_.]{1,64}$", fullmatch=True),
+    vehicle_id=vehicle_ids,
+    seq=counters,
+    sim_time_s=non_negative,
+    severity=_enum(m.EventSeverity),
+    code=st.from_regex(r"^[a-z0-9_.]{1,64}$", fullmatch=True),
     text=st.text(max_size=200),
-)  # fmt: skip
+)
 
 command_bodies = st.one_of(
     st.just(m.PingCommand()),
@@ -74,7 +99,7 @@ command_bodies = st.one_of(
         m.OperatorConfirmCommand,
         request=_enum(m.OperatorRequestKind),
         number=st.integers(0, 255),
-    ),  # fmt: skip
+    ),
     st.builds(m.SkipStopCommand, timing_point_id=names),
     st.builds(m.TrainHoldCommand, hold=st.booleans()),
 )
@@ -85,17 +110,24 @@ commands = st.builds(
 
 command_acks = st.builds(
     m.CommandAck,
-    vehicle_id=vehicle_ids, command_id=counters, accepted=st.booleans(),
-    reason=st.none() | st.text(max_size=256), sim_time_s=non_negative,
-)  # fmt: skip
+    vehicle_id=vehicle_ids,
+    command_id=counters,
+    accepted=st.booleans(),
+    reason=st.none() | st.text(max_size=256),
+    sim_time_s=non_negative,
+)
 
 timing_points = st.builds(
     m.TimingPoint,
-    id=names, position_m=non_negative, kind=_enum(m.TimingPointKind),
-    arrival_time_s=non_negative, arrival_tolerance_s=non_negative,
-    departure_time_s=st.none() | non_negative, minimum_dwell_s=non_negative,
+    id=names,
+    position_m=non_negative,
+    kind=_enum(m.TimingPointKind),
+    arrival_time_s=non_negative,
+    arrival_tolerance_s=non_negative,
+    departure_time_s=st.none() | non_negative,
+    minimum_dwell_s=non_negative,
     end_of_journey=st.just(False),
-)  # fmt: skip
+)
 
 
 @st.composite
@@ -103,18 +135,25 @@ def journey_profiles(draw: st.DrawFn) -> m.JourneyProfile:
     points = draw(st.lists(timing_points, min_size=0, max_size=5))
     last = draw(timing_points).model_copy(update={"end_of_journey": True})
     return m.JourneyProfile(
-        vehicle_id=draw(vehicle_ids), journey_id=draw(names), version=draw(counters),
-        status=draw(_enum(m.JourneyProfileStatus)), line_id=draw(names),
+        vehicle_id=draw(vehicle_ids),
+        journey_id=draw(names),
+        version=draw(counters),
+        status=draw(_enum(m.JourneyProfileStatus)),
+        line_id=draw(names),
         track_data_version=draw(st.text(min_size=1, max_size=128)),
-        max_speed_mps=draw(st.none() | non_negative), timing_points=(*points, last),
-    )  # fmt: skip
+        max_speed_mps=draw(st.none() | non_negative),
+        timing_points=(*points, last),
+    )
 
 
 journey_profile_acks = st.builds(
     m.JourneyProfileAck,
-    vehicle_id=vehicle_ids, journey_id=names, version=counters, accepted=st.booleans(),
+    vehicle_id=vehicle_ids,
+    journey_id=names,
+    version=counters,
+    accepted=st.booleans(),
     reason=st.none() | st.text(max_size=256),
-)  # fmt: skip
+)
 
 session_requests = st.builds(
     m.SessionRequest,
@@ -127,10 +166,11 @@ session_requests = st.builds(
 
 session_accepts = st.builds(
     m.SessionAccept,
-    trackside_id=names, version=st.integers(1, 1000),
+    trackside_id=names,
+    version=st.integers(1, 1000),
     response_timeout_s=st.floats(min_value=0.001, max_value=600.0),
     status_interval_s=st.floats(min_value=0.001, max_value=60.0),
-)  # fmt: skip
+)
 
 session_rejects = st.builds(
     m.SessionReject, trackside_id=names, reason=_enum(m.SessionRejectReason)
@@ -138,9 +178,10 @@ session_rejects = st.builds(
 
 session_terminations = st.builds(
     m.SessionTermination,
-    vehicle_id=vehicle_ids, by=st.sampled_from(["onboard", "trackside"]),
+    vehicle_id=vehicle_ids,
+    by=st.sampled_from(["onboard", "trackside"]),
     reason=st.text(max_size=256),
-)  # fmt: skip
+)
 
 line_version_requests = st.builds(m.LineVersionRequest, vehicle_id=vehicle_ids, line_id=names)
 line_version_replies = st.builds(
@@ -158,18 +199,21 @@ def movement_authority_ends(draw: st.DrawFn) -> m.MovementAuthorityEnd:
     danger_point_m = draw(st.just(0.0) | st.floats(min_value=0.0, max_value=1e3))
     overlap_m = danger_point_m + draw(lengths) if overlap else 0.0
     return m.MovementAuthorityEnd(
-        end_of_authority_m=draw(chainages), danger_point_m=danger_point_m, overlap_m=overlap_m,
+        end_of_authority_m=draw(chainages),
+        danger_point_m=danger_point_m,
+        overlap_m=overlap_m,
         overlap_timer_s=draw(st.none() | non_negative) if overlap else None,
         overlap_timer_start_m=draw(st.floats(min_value=0.0, max_value=1e3)) if overlap else 0.0,
         release_speed_mps=draw(st.none() | st.floats(min_value=0.0, max_value=100.0)),
-    )  # fmt: skip
+    )
 
 
 ma_sections = st.builds(
     m.MovementAuthoritySection,
-    length_m=lengths, timer_s=st.none() | non_negative,
+    length_m=lengths,
+    timer_s=st.none() | non_negative,
     timer_stop_m=st.floats(min_value=0.0, max_value=1e5),
-)  # fmt: skip
+)
 
 
 @st.composite
@@ -180,9 +224,11 @@ def movement_authority_extents(draw: st.DrawFn) -> m.MovementAuthorityExtent:
     length_m = sum(section.length_m for section in sections) if sections else draw(lengths)
     return m.MovementAuthorityExtent(
         **end.model_dump(exclude={"end_of_authority_m"}),
-        start_m=start_m, end_of_authority_m=start_m + length_m, sections=tuple(sections),
+        start_m=start_m,
+        end_of_authority_m=start_m + length_m,
+        sections=tuple(sections),
         track_description_m=draw(st.none() | lengths),
-    )  # fmt: skip
+    )
 
 
 @st.composite
@@ -190,35 +236,43 @@ def movement_authority_messages(draw: st.DrawFn) -> m.MovementAuthorityMessage:
     change = draw(_enum(m.MovementAuthorityChange))
     revoked = change is m.MovementAuthorityChange.REVOKED
     return m.MovementAuthorityMessage(
-        vehicle_id=draw(vehicle_ids), ma_id=draw(ma_ids), change=change,
-        issued_at_s=draw(non_negative), line_id=draw(names),
+        vehicle_id=draw(vehicle_ids),
+        ma_id=draw(ma_ids),
+        change=change,
+        issued_at_s=draw(non_negative),
+        line_id=draw(names),
         line_version=draw(st.text(min_size=1, max_size=128)),
         authority=None if revoked else draw(movement_authority_extents()),
-    )  # fmt: skip
+    )
 
 
 movement_authority_requests = st.builds(m.MovementAuthorityRequest, vehicle_id=vehicle_ids)
 movement_authority_replies = st.builds(
     m.MovementAuthorityReply,
-    vehicle_id=vehicle_ids, movement_authority=st.none() | movement_authority_messages(),
-)  # fmt: skip
+    vehicle_id=vehicle_ids,
+    movement_authority=st.none() | movement_authority_messages(),
+)
 movement_authority_acks = st.builds(
     m.MovementAuthorityAck,
-    vehicle_id=vehicle_ids, ma_id=ma_ids, accepted=st.booleans(),
-    reason=st.none() | st.text(max_size=256), sim_time_s=non_negative,
-)  # fmt: skip
+    vehicle_id=vehicle_ids,
+    ma_id=ma_ids,
+    accepted=st.booleans(),
+    reason=st.none() | st.text(max_size=256),
+    sim_time_s=non_negative,
+)
 
 
 @st.composite
 def speed_restriction_messages(draw: st.DrawFn) -> m.SpeedRestrictionMessage:
     start = draw(st.floats(0.0, 1e6, allow_nan=False))
     return m.SpeedRestrictionMessage(
-        vehicle_id=draw(vehicle_ids), restriction_id=draw(st.from_regex(r"[a-z0-9_.:-]{1,64}",
-                                                                         fullmatch=True)),
-        line_id=draw(names), start_m=start,
+        vehicle_id=draw(vehicle_ids),
+        restriction_id=draw(st.from_regex(r"[a-z0-9_.:-]{1,64}", fullmatch=True)),
+        line_id=draw(names),
+        start_m=start,
         end_m=start + draw(st.floats(0.5, 1e5, allow_nan=False)),
         speed_mps=draw(st.none() | st.floats(0.1, 100.0, allow_nan=False)),
-    )  # fmt: skip
+    )
 
 
 STRATEGIES: dict[type[m.Message], st.SearchStrategy[Any]] = {

@@ -25,41 +25,51 @@ from tests.conftest import wait_for
 
 def _status(seq: int, vehicle: str = "URV1") -> m.StatusReport:
     return m.StatusReport(
-        vehicle_id=vehicle, seq=seq, sim_time_s=seq * 0.2, line_id="bologna-ring",
-        position_m=float(seq), speed_mps=1.0, acceleration_mps2=0.0, traction_force_n=0.0,
-        ato_state=m.AtoState.NOT_AVAILABLE, etcs_mode=m.EtcsMode.SR, sc_state=m.ScState.OFF,
-    )  # fmt: skip
+        vehicle_id=vehicle,
+        seq=seq,
+        sim_time_s=seq * 0.2,
+        line_id="bologna-ring",
+        position_m=float(seq),
+        speed_mps=1.0,
+        acceleration_mps2=0.0,
+        traction_force_n=0.0,
+        ato_state=m.AtoState.NOT_AVAILABLE,
+        etcs_mode=m.EtcsMode.SR,
+        sc_state=m.ScState.OFF,
+    )
 
 
 def test_pub_sub_between_two_sessions(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> None:
     trackside, onboard = zenoh_pair
-    with TypedSubscriber(trackside, STATUS) as subscriber:
-        with TypedPublisher(onboard, STATUS, vehicle="URV1") as publisher:
-            assert wait_for(lambda: (publisher.put(_status(0)), subscriber.stats.received > 0)[1])
-            publisher.put(_status(7))
-            assert wait_for(
-                lambda: (subscriber.latest("ato/ob/URV1/status") or _status(0)).seq == 7
-            )
+    with (
+        TypedSubscriber(trackside, STATUS) as subscriber,
+        TypedPublisher(onboard, STATUS, vehicle="URV1") as publisher,
+    ):
+        assert wait_for(lambda: (publisher.put(_status(0)), subscriber.stats.received > 0)[1])
+        publisher.put(_status(7))
+        assert wait_for(lambda: (subscriber.latest("ato/ob/URV1/status") or _status(0)).seq == 7)
     assert subscriber.stats.bad_payloads == 0
 
 
 def test_fifo_keeps_every_message_in_order(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> None:
     trackside, onboard = zenoh_pair
     received: list[int] = []
-    with TypedSubscriber(trackside, EVENT, on_message=lambda _k, e: received.append(e.seq)):
-        with TypedPublisher(onboard, EVENT, vehicle="URV1") as publisher:
-            ping = m.Event(
-                vehicle_id="URV1", seq=10**6, sim_time_s=0, severity="info", code="x", text=""
-            )
-            assert wait_for(lambda: (publisher.put(ping), bool(received))[1])
-            received.clear()
-            for seq in range(200):
-                publisher.put(
-                    m.Event(
-                        vehicle_id="URV1", seq=seq, sim_time_s=0, severity="info", code="x", text=""
-                    )
+    with (
+        TypedSubscriber(trackside, EVENT, on_message=lambda _k, e: received.append(e.seq)),
+        TypedPublisher(onboard, EVENT, vehicle="URV1") as publisher,
+    ):
+        ping = m.Event(
+            vehicle_id="URV1", seq=10**6, sim_time_s=0, severity="info", code="x", text=""
+        )
+        assert wait_for(lambda: (publisher.put(ping), bool(received))[1])
+        received.clear()
+        for seq in range(200):
+            publisher.put(
+                m.Event(
+                    vehicle_id="URV1", seq=seq, sim_time_s=0, severity="info", code="x", text=""
                 )
-            assert wait_for(lambda: len([s for s in received if s < 10**6]) == 200)
+            )
+        assert wait_for(lambda: len([s for s in received if s < 10**6]) == 200)
     assert [s for s in received if s < 10**6] == list(range(200))
 
 
@@ -98,7 +108,8 @@ def test_query_reply(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> None:
         assert ack == m.CommandAck(vehicle_id="URV1", command_id=41, accepted=True, sim_time_s=1.5)
         # A malformed request gets an error reply, counted by the queryable.
         replies = list(trackside.get("ato/ob/URV1/command", payload=b"{}", timeout=2.0))
-        assert replies and replies[0].err is not None
+        assert replies
+        assert replies[0].err is not None
         assert queryable.stats.bad_payloads == 1
 
 

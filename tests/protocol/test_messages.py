@@ -71,9 +71,12 @@ def test_schema_version_is_checked() -> None:
 
 def _tp(identifier: str, *, end: bool) -> m.TimingPoint:
     return m.TimingPoint(
-        id=identifier, position_m=100.0, kind=m.TimingPointKind.STOPPING, arrival_time_s=60.0,
+        id=identifier,
+        position_m=100.0,
+        kind=m.TimingPointKind.STOPPING,
+        arrival_time_s=60.0,
         end_of_journey=end,
-    )  # fmt: skip
+    )
 
 
 @pytest.mark.parametrize(
@@ -90,22 +93,34 @@ def test_journey_profile_needs_one_end_of_journey_last(
 ) -> None:
     with pytest.raises(ValidationError):
         m.JourneyProfile(
-            vehicle_id="URV1", journey_id="j", version=0, status=m.JourneyProfileStatus.VALID,
-            line_id="bologna-ring", track_data_version="x",
+            vehicle_id="URV1",
+            journey_id="j",
+            version=0,
+            status=m.JourneyProfileStatus.VALID,
+            line_id="bologna-ring",
+            track_data_version="x",
             timing_points=tuple(_tp(name, end=end) for name, end in points),
-        )  # fmt: skip
+        )
 
 
 @pytest.mark.parametrize(
-    "field, value",
+    ("field", "value"),
     [("speed_mps", float("nan")), ("position_m", float("inf")), ("seq", -1), ("vehicle_id", "a/b")],
 )
 def test_status_report_refuses_bad_values(field: str, value: object) -> None:
     good = {
-        "vehicle_id": "URV1", "seq": 0, "sim_time_s": 0.0, "line_id": "l", "position_m": 0.0,
-        "speed_mps": 0.0, "acceleration_mps2": 0.0, "traction_force_n": 0.0, "ato_state": "NA",
-        "etcs_mode": "SR", "sc_state": "OFF",
-    }  # fmt: skip
+        "vehicle_id": "URV1",
+        "seq": 0,
+        "sim_time_s": 0.0,
+        "line_id": "l",
+        "position_m": 0.0,
+        "speed_mps": 0.0,
+        "acceleration_mps2": 0.0,
+        "traction_force_n": 0.0,
+        "ato_state": "NA",
+        "etcs_mode": "SR",
+        "sc_state": "OFF",
+    }
     m.StatusReport.model_validate(good)
     with pytest.raises(ValidationError):
         m.StatusReport.model_validate(good | {field: value})

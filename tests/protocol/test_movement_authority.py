@@ -20,9 +20,14 @@ GOOD_EXTENT: dict[str, Any] = {"start_m": 100.0, "end_of_authority_m": 900.0}
 
 def _message(**overrides: Any) -> dict[str, Any]:
     return {
-        "vehicle_id": "URV1", "ma_id": 1, "change": "issued", "issued_at_s": 0.0,
-        "line_id": "milano-bologna", "line_version": "v1", "authority": GOOD_EXTENT,
-    } | overrides  # fmt: skip
+        "vehicle_id": "URV1",
+        "ma_id": 1,
+        "change": "issued",
+        "issued_at_s": 0.0,
+        "line_id": "milano-bologna",
+        "line_version": "v1",
+        "authority": GOOD_EXTENT,
+    } | overrides
 
 
 @given(movement_authority_messages())
@@ -61,7 +66,7 @@ def test_supervised_location_is_overlap_else_danger_point_else_eoa() -> None:
 
 
 @pytest.mark.parametrize(
-    "changes, needle",
+    ("changes", "needle"),
     [
         ({"end_of_authority_m": 100.0}, "must lie beyond the start"),
         ({"end_of_authority_m": float("nan")}, "finite"),

@@ -32,7 +32,7 @@ def test_config_has_no_scouting_and_a_short_lease(mode: str) -> None:
     ],
 )
 def test_config_refuses_unsafe_settings(kwargs: dict[str, object]) -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="lease|endpoint"):
         zenoh_config(**kwargs)  # type: ignore[arg-type]
 
 
@@ -40,6 +40,5 @@ def test_client_without_router_fails_with_transport_error() -> None:
     from deploy.ports import loopback_endpoint
 
     settings = ZenohSettings(mode="client", connect=(loopback_endpoint(),))
-    with pytest.raises(TransportError):
-        with open_session(settings, connect_timeout_s=0.3):
-            pass
+    with pytest.raises(TransportError), open_session(settings, connect_timeout_s=0.3):
+        pass

@@ -27,11 +27,15 @@ def _finite(low: float, high: float) -> st.SearchStrategy[float]:
 def lines(draw: st.DrawFn) -> Line:
     """A valid line: 1–5 stretches, stopping points, balise groups and TSRs on it."""
     builder = LineBuilder(
-        id=draw(identifiers), name=draw(names), ring=draw(st.booleans()),
-        etcs_level=draw(st.sampled_from([1, 2])), origin_lat_deg=draw(_finite(-60.0, 60.0)),
-        origin_lon_deg=draw(_finite(-170.0, 170.0)), origin_alt_m=draw(_finite(0.0, 2000.0)),
+        id=draw(identifiers),
+        name=draw(names),
+        ring=draw(st.booleans()),
+        etcs_level=draw(st.sampled_from([1, 2])),
+        origin_lat_deg=draw(_finite(-60.0, 60.0)),
+        origin_lon_deg=draw(_finite(-170.0, 170.0)),
+        origin_alt_m=draw(_finite(0.0, 2000.0)),
         heading_deg=draw(_finite(-180.0, 180.0)),
-    )  # fmt: skip
+    )
     for _ in range(draw(st.integers(1, 5))):
         length_m = float(draw(st.integers(20, 3000)))
         speed_kmh = draw(_finite(10.0, 350.0))

@@ -29,14 +29,16 @@ def _tp(identifier: str, arrival_s: float, **kwargs: object) -> JourneyTimingPoi
 
 def _ring_journey(east_arrival_s: float = 300.0) -> Journey:
     return Journey(
-        id="field-test-lap", line_id="bologna-ring", start_position_m=200.0,
+        id="field-test-lap",
+        line_id="bologna-ring",
+        start_position_m=200.0,
         max_speed_mps=CAP_40_KMH,
         timing_points=(
             _tp("east", east_arrival_s, minimum_dwell_s=20.0),
             _tp("south", east_arrival_s + 250.0, minimum_dwell_s=20.0),
             _tp("north", east_arrival_s + 700.0, end_of_journey=True),
         ),
-    )  # fmt: skip
+    )
 
 
 @pytest.fixture(scope="module")
@@ -70,9 +72,13 @@ def test_minimum_running_time_matches_the_closed_form() -> None:
     """Flat straight, force-limited acceleration, cap, service braking: t = D/v + v/2a + v/2b."""
     track = TrackMap(LineBuilder(id="flat", name="Flat").straight(3000.0, speed_kmh=72).build())
     vehicle = VehicleLimits(
-        mass_kg=10_000.0, rotating_mass_factor=0.0, max_traction_force_n=5_000.0,
-        max_traction_power_w=1e9, service_deceleration_mps2=0.5, max_speed_mps=100.0,
-    )  # fmt: skip
+        mass_kg=10_000.0,
+        rotating_mass_factor=0.0,
+        max_traction_force_n=5_000.0,
+        max_traction_power_w=1e9,
+        service_deceleration_mps2=0.5,
+        max_speed_mps=100.0,
+    )
     (minimum,) = minimum_running_times(track, vehicle, 0.0, [2000.0], [True], step_m=0.5)
     v, a, b = 20.0, 0.5, 0.5
     expected = 2000.0 / v + v / (2 * a) + v / (2 * b)
@@ -97,7 +103,7 @@ def test_passing_points_are_not_stops(ring: TrackMap) -> None:
 
 
 @pytest.mark.parametrize(
-    "points, problem",
+    ("points", "problem"),
     [
         (
             (_tp("east", 300.0), _tp("nowhere", 600.0, end_of_journey=True)),
@@ -143,32 +149,36 @@ def test_journey_problems(
 def test_points_must_follow_the_direction_of_travel_on_an_open_line() -> None:
     track = TrackMap(LineBuilder(id="open", name="Open").straight(5000.0, speed_kmh=80).build())
     journey = Journey(
-        id="j", line_id="open", start_position_m=1000.0,
+        id="j",
+        line_id="open",
+        start_position_m=1000.0,
         timing_points=(
             _tp("a", 300.0, position_m=3000.0),
             _tp("b", 900.0, position_m=2000.0, end_of_journey=True),
         ),
-    )  # fmt: skip
+    )
     check = check_journey(journey, track)
     assert any("not ahead" in text and "b" in text for text in check.problems)
 
 
 def test_wrong_line_and_bad_start(ring: TrackMap) -> None:
     journey = Journey(
-        id="j", line_id="milano-bologna", start_position_m=99_000.0,
+        id="j",
+        line_id="milano-bologna",
+        start_position_m=99_000.0,
         timing_points=(_tp("east", 300.0, end_of_journey=True),),
-    )  # fmt: skip
+    )
     problems = check_journey(journey, ring).problems
     assert any("not 'bologna-ring'" in p for p in problems)
     assert any("start" in p for p in problems)
 
 
 def test_timing_point_needs_exactly_one_location() -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="either stopping_point_id or position_m"):
         JourneyTimingPoint(id="x", arrival_time_s=1.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="either stopping_point_id or position_m"):
         JourneyTimingPoint(id="x", arrival_time_s=1.0, stopping_point_id="x", position_m=3.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="departure before arrival"):
         JourneyTimingPoint(id="x", arrival_time_s=10.0, departure_time_s=5.0, position_m=3.0)
 
 
@@ -182,22 +192,27 @@ def test_the_journey_profile_message(ring: TrackMap) -> None:
     assert [tp.position_m for tp in message.timing_points] == [1975.0, 3400.0, 550.0]
     assert message.max_speed_mps == pytest.approx(CAP_40_KMH)
     assert m.JourneyProfile.model_validate_json(message.model_dump_json()) == message
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="only a valid journey"):
         journey_profile_message(
-            journey, check_journey(_ring_journey(60.0), ring), vehicle_id="URV1", version=1,
+            journey,
+            check_journey(_ring_journey(60.0), ring),
+            vehicle_id="URV1",
+            version=1,
             track_data_version="x",
-        )  # fmt: skip
+        )
 
 
 def test_milano_bologna_journey_is_computed_quickly_enough_to_validate() -> None:
     track = TrackMap(load_seed_line("milano-bologna"))
     journey = Journey(
-        id="mission", line_id="milano-bologna", start_position_m=500.0,
+        id="mission",
+        line_id="milano-bologna",
+        start_position_m=500.0,
         timing_points=(
             _tp("reggio-emilia", 3600.0, minimum_dwell_s=60.0),
             _tp("bologna-centrale", 5400.0, end_of_journey=True),
         ),
-    )  # fmt: skip
+    )
     check = check_journey(journey, track)
     assert check.valid, check.problems
     assert math.isfinite(check.legs[0].minimum_s)

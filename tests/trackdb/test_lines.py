@@ -50,9 +50,8 @@ def test_seed_high_speed_line_is_plausible() -> None:
     assert max(s.value for s in line.speed_limit_mps) * 3.6 == pytest.approx(300.0)
     assert min(s.value for s in line.speed_limit_mps) * 3.6 < 200.0
     assert max(abs(s.value) for s in line.gradient_permille) <= 15.0
-    assert (
-        line.stopping_points[0].position_m < 1000 and line.stopping_points[-1].position_m > 198_000
-    )
+    assert line.stopping_points[0].position_m < 1000
+    assert line.stopping_points[-1].position_m > 198_000
     assert len(line.stopping_points) >= 4
 
 
@@ -63,7 +62,7 @@ def test_version_is_a_content_hash() -> None:
 
 
 @pytest.mark.parametrize(
-    "overrides, problem",
+    ("overrides", "problem"),
     [
         (
             {"gradient_permille": [{"start_m": 0, "end_m": 900, "value": 0}]},
@@ -128,5 +127,5 @@ def test_schema_errors_are_listed_with_their_location() -> None:
 
 
 def test_profile_section_rejects_non_finite() -> None:
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="finite number"):
         ProfileSection(start_m=0.0, end_m=math.inf, value=1.0)

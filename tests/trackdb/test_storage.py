@@ -55,7 +55,8 @@ def test_seed_line_import_export_reimport_keeps_the_version(line_id: str, engine
     seed = load_seed_line(line_id)
     with Session(engine) as session, session.begin():
         stored = storage.import_line(session, seed)
-    assert stored == seed and stored.version() == seed.version()
+    assert stored == seed
+    assert stored.version() == seed.version()
     with Session(engine) as session:
         exported = storage.export_line(session, line_id)
         assert storage.get_line(session, line_id) == seed
@@ -65,7 +66,8 @@ def test_seed_line_import_export_reimport_keeps_the_version(line_id: str, engine
         assert again.version() == seed.version()
         assert _counts(session) == (1, 1)
         [summary] = storage.line_versions(session, line_id)
-    assert summary.current and summary.version == seed.version()
+    assert summary.current
+    assert summary.version == seed.version()
 
 
 def test_reimport_is_a_no_op(session: Session) -> None:
@@ -115,7 +117,8 @@ def test_versions_are_kept_and_the_latest_import_is_current(session: Session) ->
         ("small-ring", "Small ring", True),
         ("tiny", "Tiny line, renamed", True),
     ]
-    assert summaries[1].length_m == 1000.0 and not summaries[1].ring
+    assert summaries[1].length_m == 1000.0
+    assert not summaries[1].ring
     # Importing an older version again makes it current without storing it twice.
     storage.import_line(session, first)
     session.commit()
@@ -124,7 +127,7 @@ def test_versions_are_kept_and_the_latest_import_is_current(session: Session) ->
 
 
 @pytest.mark.parametrize(
-    "breakage, expected",
+    ("breakage", "expected"),
     [
         ({"speed": -1.0, "stop": 5000.0}, ["non-positive speed", "beyond the line's end"]),
         ({"colour": "blue", "length": "long"}, ["balise_groups.0.colour", "length_m"]),
@@ -147,7 +150,8 @@ def test_an_invalid_line_is_rejected_whole(
     for fragment in expected:
         assert any(fragment in problem for problem in problems), problems
     assert caught.value.line_id == "tiny"
-    assert not session.new and not session.dirty
+    assert not session.new
+    assert not session.dirty
     session.commit()
     assert _counts(session) == (0, 0)
 
@@ -166,7 +170,8 @@ def test_a_rejected_version_leaves_the_current_one(session: Session) -> None:
 def test_not_json_is_a_validation_error(session: Session) -> None:
     with pytest.raises(LineValidationError) as caught:
         storage.import_line(session, b"{not json")
-    assert caught.value.problems and "JSON" in caught.value.problems[0]
+    assert caught.value.problems
+    assert "JSON" in caught.value.problems[0]
 
 
 def test_unknown_line_or_version_raises(session: Session) -> None:
@@ -179,11 +184,13 @@ def test_unknown_line_or_version_raises(session: Session) -> None:
     ):
         with pytest.raises(LineNotFoundError) as caught:
             call()
-        assert caught.value.line_id == "nowhere" and caught.value.version is None
+        assert caught.value.line_id == "nowhere"
+        assert caught.value.version is None
     with pytest.raises(LineNotFoundError) as caught:
         storage.get_line(session, "tiny", "0" * 64)
     assert caught.value.version == "0" * 64
-    assert isinstance(caught.value, LookupError) and isinstance(caught.value, TrackDataError)
+    assert isinstance(caught.value, LookupError)
+    assert isinstance(caught.value, TrackDataError)
     assert storage.list_lines(session)[0].id == "tiny"
 
 

@@ -152,7 +152,7 @@ def test_tsrs_added_overlapping_replaced_and_revoked() -> None:
     assert len(track.line.temporary_speed_restrictions) == 1
 
 
-@pytest.mark.parametrize("start_m, end_m", [(500.0, 1000.5), (300.0, 300.0), (400.0, 200.0)])
+@pytest.mark.parametrize(("start_m", "end_m"), [(500.0, 1000.5), (300.0, 300.0), (400.0, 200.0)])
 def test_a_tsr_off_the_line_is_refused(start_m: float, end_m: float) -> None:
     track = TrackMap(open_line())
     with pytest.raises(ValueError, match="not a range on line"):
@@ -288,13 +288,16 @@ def test_mrsp_window_is_contiguous_and_agrees_with_the_point_query(
 def test_next_stopping_point_on_the_open_line() -> None:
     track = TrackMap(open_line())
     found = track.next_stopping_point(600.0)
-    assert found is not None and found[0].id == "b"
+    assert found is not None
+    assert found[0].id == "b"
     assert found[1] == 0.0  # a point at the chainage itself
     found = track.next_stopping_point(600.1)
-    assert found is not None and found[0].id == "c"
+    assert found is not None
+    assert found[0].id == "c"
     assert found[1] == pytest.approx(349.9, abs=CHAINAGE_ATOL_M)
     found = track.next_stopping_point(-50.0)  # clamped to the origin
-    assert found is not None and found[0].id == "a"
+    assert found is not None
+    assert found[0].id == "a"
     assert found[1] == pytest.approx(100.0, abs=CHAINAGE_ATOL_M)
     assert track.next_stopping_point(600.1, max_distance_m=300.0) is None
     assert track.next_stopping_point(951.0) is None
@@ -304,10 +307,12 @@ def test_next_stopping_point_on_the_open_line() -> None:
 def test_next_stopping_point_wraps_on_the_ring() -> None:
     track = TrackMap(ring_line())
     found = track.next_stopping_point(650.0)
-    assert found is not None and found[0].id == "s1"
+    assert found is not None
+    assert found[0].id == "s1"
     assert found[1] == pytest.approx(450.0, abs=CHAINAGE_ATOL_M)
     found = track.next_stopping_point(-10.0)
-    assert found is not None and found[0].id == "s1"
+    assert found is not None
+    assert found[0].id == "s1"
     assert found[1] == pytest.approx(110.0, abs=CHAINAGE_ATOL_M)
     assert track.next_stopping_point(650.0, max_distance_m=449.0) is None
     empty = TrackMap(load_seed_line("bologna-ring").model_copy(update={"stopping_points": ()}))
@@ -378,7 +383,8 @@ def test_projection_gives_chainage_and_signed_cross_track() -> None:
             assert projection.cross_track_m == pytest.approx(left_m, abs=PROJECTION_ATOL_M)
             assert projection.bounded is (near_m is not None)
     before_start = track.project(*_offset_fix(track, -20.0, 0.0), near_m=0.0)
-    assert before_start.chainage_m == 0.0 and before_start.bounded
+    assert before_start.chainage_m == 0.0
+    assert before_start.bounded
     assert before_start.cross_track_m == pytest.approx(20.0, abs=PROJECTION_ATOL_M)
 
 
@@ -387,16 +393,20 @@ def test_a_far_fix_falls_back_to_the_global_search() -> None:
     lat, lon, _ = track.geodetic_at(700.0)
     # The estimate is 600 m behind: the bounded best point is at the window's edge.
     behind = track.project(lat, lon, near_m=100.0, window_m=100.0)
-    assert behind.chainage_m == pytest.approx(700.0, abs=PROJECTION_ATOL_M) and not behind.bounded
+    assert behind.chainage_m == pytest.approx(700.0, abs=PROJECTION_ATOL_M)
+    assert not behind.bounded
     # A fix 80 m off the track is checked globally, and is found where it is.
     off = track.project(*_offset_fix(track, 150.0, 80.0), near_m=150.0)
-    assert off.chainage_m == pytest.approx(150.0, abs=PROJECTION_ATOL_M) and not off.bounded
+    assert off.chainage_m == pytest.approx(150.0, abs=PROJECTION_ATOL_M)
+    assert not off.bounded
     ring = TrackMap(ring_line())
     lat, lon, _ = ring.geodetic_at(20.0)
     across = ring.project(lat, lon, near_m=600.0, window_m=100.0)
-    assert across.chainage_m == pytest.approx(20.0, abs=PROJECTION_ATOL_M) and not across.bounded
+    assert across.chainage_m == pytest.approx(20.0, abs=PROJECTION_ATOL_M)
+    assert not across.bounded
     wrapped = ring.project(lat, lon, near_m=980.0, window_m=100.0)
-    assert wrapped.chainage_m == pytest.approx(20.0, abs=PROJECTION_ATOL_M) and wrapped.bounded
+    assert wrapped.chainage_m == pytest.approx(20.0, abs=PROJECTION_ATOL_M)
+    assert wrapped.bounded
 
 
 def test_a_window_wider_than_the_ring_searches_all_of_it() -> None:
@@ -467,9 +477,12 @@ def test_a_noisy_fix_projects_within_its_noise(
 
 def test_distance_beyond_the_last_balise_group() -> None:
     line = (
-        LineBuilder(id="groups", name="Groups").straight(2000.0, speed_kmh=80)
-        .balise_group(1, 300.0).balise_group(2, 1200.0, link_next=False).build()
-    )  # fmt: skip
+        LineBuilder(id="groups", name="Groups")
+        .straight(2000.0, speed_kmh=80)
+        .balise_group(1, 300.0)
+        .balise_group(2, 1200.0, link_next=False)
+        .build()
+    )
     track_map = TrackMap(line)
     assert track_map.distance_beyond_balise_group_m(100.0) is None  # before the first group
     assert track_map.distance_beyond_balise_group_m(300.0) == 0.0

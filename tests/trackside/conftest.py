@@ -30,8 +30,10 @@ def make_client(
 
     def make(**overrides: object) -> TestClient:
         values: dict[str, object] = {
-            "database_url": database_url, "admin_user": ADMIN[0], "admin_password": ADMIN[1],
-        }  # fmt: skip
+            "database_url": database_url,
+            "admin_user": ADMIN[0],
+            "admin_password": ADMIN[1],
+        }
         settings = Settings(**(values | overrides))  # type: ignore[arg-type]
         client = TestClient(create_app(settings, zenoh_session=trackside_session))
         client.__enter__()
@@ -83,9 +85,11 @@ def running_vehicle(endpoint: str, vehicle_id: str = "URV1", speed: float = 1.0)
 
     with open_session(ZenohSettings(connect=(endpoint,))) as session:
         node = OnboardNode(
-            OnboardSettings(vehicle_id=vehicle_id), session=session, clock=RealTimeClock(speed),
+            OnboardSettings(vehicle_id=vehicle_id),
+            session=session,
+            clock=RealTimeClock(speed),
             track_map=TrackMap(load_seed_line("bologna-ring")),
-        )  # fmt: skip
+        )
         runner = threading.Thread(target=node.run, daemon=True)
         runner.start()
         try:
@@ -100,9 +104,12 @@ def running_vehicle(endpoint: str, vehicle_id: str = "URV1", speed: float = 1.0)
 def running_service(endpoint: str, database_url: str, **overrides: Any) -> Iterator[TestClient]:
     """The real app on its own Zenoh session, with the users of :data:`USERS`."""
     values: dict[str, Any] = {
-        "database_url": database_url, "admin_user": ADMIN[0], "admin_password": ADMIN[1],
-        "zenoh_connect": (endpoint,), "command_timeout_s": 3.0,
-    }  # fmt: skip
+        "database_url": database_url,
+        "admin_user": ADMIN[0],
+        "admin_password": ADMIN[1],
+        "zenoh_connect": (endpoint,),
+        "command_timeout_s": 3.0,
+    }
     with TestClient(create_app(Settings(**(values | overrides)))) as client:
         admin = login(client, *ADMIN)
         for username, password, role in USERS.values():

@@ -25,7 +25,7 @@ def test_token_for_the_bootstrapped_admin(client: TestClient) -> None:
     assert len(body["access_token"]) >= 32
 
 
-@pytest.mark.parametrize("username, password", [(ADMIN[0], "wrong"), ("nobody", "whatever")])
+@pytest.mark.parametrize(("username", "password"), [(ADMIN[0], "wrong"), ("nobody", "whatever")])
 def test_wrong_credentials_are_401(client: TestClient, username: str, password: str) -> None:
     response = client.post("/api/v1/auth/token", data={"username": username, "password": password})
     assert response.status_code == 401
@@ -39,9 +39,10 @@ def test_routes_need_a_token(client: TestClient, path: str) -> None:
 
 def test_role_too_low_is_403(client: TestClient, admin_headers: dict[str, str]) -> None:
     created = client.post(
-        "/api/v1/users", headers=admin_headers,
+        "/api/v1/users",
+        headers=admin_headers,
         json={"username": "olga", "password": "observer-pw", "role": "observer"},
-    )  # fmt: skip
+    )
     assert created.status_code == 201
     observer = login(client, "olga", "observer-pw")
     assert client.get("/api/v1/users/me", headers=observer).json() == {
@@ -50,9 +51,10 @@ def test_role_too_low_is_403(client: TestClient, admin_headers: dict[str, str]) 
     }
     assert client.get("/api/v1/vehicles", headers=observer).status_code == 200
     forbidden = client.post(
-        "/api/v1/users", headers=observer,
+        "/api/v1/users",
+        headers=observer,
         json={"username": "eve", "password": "password-x", "role": "admin"},
-    )  # fmt: skip
+    )
     assert forbidden.status_code == 403
 
 
@@ -102,8 +104,10 @@ def test_passwords_and_tokens_are_not_stored_in_clear(
         stored_hash = connection.execute(text("SELECT password_hash FROM users")).scalar_one()
         token_hashes = connection.execute(text("SELECT token_hash FROM api_tokens")).scalars().all()
     engine.dispose()
-    assert stored_hash.startswith("scrypt$") and ADMIN[1] not in stored_hash
-    assert token not in token_hashes and len(token_hashes) == 1
+    assert stored_hash.startswith("scrypt$")
+    assert ADMIN[1] not in stored_hash
+    assert token not in token_hashes
+    assert len(token_hashes) == 1
 
 
 def test_openapi_describes_every_route(client: TestClient) -> None:
@@ -125,8 +129,10 @@ def test_what_a_route_writes_is_committed_before_its_answer_is_sent(
     committed then, or that request races the commit and gets a 401 (seen on a loaded CI host).
     A second connection checks the token while the answer's body is being sent."""
     settings = Settings(
-        database_url=database_url, admin_user=ADMIN[0], admin_password=ADMIN[1],
-    )  # fmt: skip
+        database_url=database_url,
+        admin_user=ADMIN[0],
+        admin_password=ADMIN[1],
+    )
     app = create_app(settings, zenoh_session=zenoh_pair[0])
     engine = create_engine(database_url)
     seen: list[str] = []

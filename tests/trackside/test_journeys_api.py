@@ -18,13 +18,21 @@ def _journey(east_arrival_s: float = 300.0, journey_id: str = "field-test-lap") 
         "start_position_m": 200.0,
         "max_speed_mps": CAP_40_KMH,
         "timing_points": [
-            {"id": "east", "stopping_point_id": "east", "arrival_time_s": east_arrival_s,
-             "minimum_dwell_s": 20.0},
+            {
+                "id": "east",
+                "stopping_point_id": "east",
+                "arrival_time_s": east_arrival_s,
+                "minimum_dwell_s": 20.0,
+            },
             {"id": "south", "stopping_point_id": "south", "arrival_time_s": east_arrival_s + 250},
-            {"id": "north", "stopping_point_id": "north", "arrival_time_s": east_arrival_s + 700,
-             "end_of_journey": True},
+            {
+                "id": "north",
+                "stopping_point_id": "north",
+                "arrival_time_s": east_arrival_s + 700,
+                "end_of_journey": True,
+            },
         ],
-    }  # fmt: skip
+    }
 
 
 def test_validate_a_feasible_and_an_impossible_journey(
@@ -33,7 +41,8 @@ def test_validate_a_feasible_and_an_impossible_journey(
     good = client.post("/api/v1/journeys/validate", json=_journey(), headers=admin_headers)
     assert good.status_code == 200, good.text
     body = good.json()
-    assert body["valid"] is True and body["problems"] == []
+    assert body["valid"] is True
+    assert body["problems"] == []
     assert [leg["to_id"] for leg in body["legs"]] == ["east", "south", "north"]
     assert len(body["line_version"]) == 64
 
@@ -81,9 +90,10 @@ def test_bad_bodies_unknown_lines_and_roles(
         == 404
     )
     client.post(
-        "/api/v1/users", headers=admin_headers,
+        "/api/v1/users",
+        headers=admin_headers,
         json={"username": "watcher", "password": "observer-pw", "role": "observer"},
-    )  # fmt: skip
+    )
     observer = login(client, "watcher", "observer-pw")
     assert client.post("/api/v1/journeys", json=_journey(), headers=observer).status_code == 403
     assert (

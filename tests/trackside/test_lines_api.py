@@ -60,9 +60,13 @@ def test_seed_lines_are_listed(client: TestClient, observer: Headers) -> None:
     assert set(listed) == set(SEED_LINES)
     ring = load_seed_line(RING)
     assert listed[RING] == {
-        "id": RING, "name": ring.name, "version": ring.version(), "length_m": ring.length_m,
-        "ring": True, "etcs_level": 1,
-    }  # fmt: skip
+        "id": RING,
+        "name": ring.name,
+        "version": ring.version(),
+        "length_m": ring.length_m,
+        "ring": True,
+        "etcs_level": 1,
+    }
     assert listed["milano-bologna"]["etcs_level"] == 2
 
 
@@ -86,7 +90,8 @@ def test_document_version_and_export(client: TestClient, observer: Headers) -> N
     assert exported.headers["content-disposition"].startswith("attachment; filename=")
     assert hashlib.sha256(exported.content).hexdigest() == ring.version()
     [stored] = client.get(f"/api/v1/lines/{RING}/versions", headers=observer).json()
-    assert stored["version"] == ring.version() and stored["current"] is True
+    assert stored["version"] == ring.version()
+    assert stored["current"] is True
 
 
 def test_import_needs_the_admin_role(client: TestClient, admin_headers: Headers) -> None:
@@ -105,7 +110,8 @@ def test_import_versions_and_reimport(client: TestClient, admin_headers: Headers
     assert _import(client, admin_headers, second.model_dump(mode="json")).status_code == 201
     # The same document again: stored already, made current, nothing new.
     again = _import(client, admin_headers, first.model_dump(mode="json"))
-    assert again.status_code == 200 and again.json()["version"] == first.version()
+    assert again.status_code == 200
+    assert again.json()["version"] == first.version()
     versions = client.get("/api/v1/lines/tiny/versions", headers=admin_headers).json()
     assert [(v["version"], v["current"]) for v in versions] == [
         (first.version(), True),
@@ -126,9 +132,10 @@ def test_the_exported_document_imports_to_the_same_version(
 ) -> None:
     exported = client.get(f"/api/v1/lines/{RING}/export", headers=admin_headers)
     response = client.post(
-        "/api/v1/lines", headers=admin_headers | {"Content-Type": "application/json"},
+        "/api/v1/lines",
+        headers=admin_headers | {"Content-Type": "application/json"},
         content=exported.content,
-    )  # fmt: skip
+    )
     assert response.status_code == 200
     assert response.json()["version"] == load_seed_line(RING).version()
 
@@ -178,9 +185,11 @@ def test_profile_of_a_whole_seed_line(client: TestClient, observer: Headers, lin
     assert response.status_code == 200
     profile = response.json()
     chainages = profile["chainage_m"]
-    assert profile["version"] == line.version() and profile["ring"] == line.ring
+    assert profile["version"] == line.version()
+    assert profile["ring"] == line.ring
     assert len(chainages) == 1001
-    assert chainages[0] == 0.0 and chainages[-1] == line.length_m
+    assert chainages[0] == 0.0
+    assert chainages[-1] == line.length_m
     for key in ("gradient_permille", "curvature_per_m", "speed_limit_mps", "mrsp_mps"):
         assert len(profile[key]) == len(chainages), key
     assert len(profile["altitude_m"]) == len(chainages)
@@ -232,12 +241,16 @@ def test_profile_ends_at_to_when_the_step_does_not_divide(
     assert _import(client, admin_headers, small_ring().model_dump(mode="json")).status_code == 201
     path = "/api/v1/lines/small-ring/profile?from=10&to=1000&step=300"
     assert client.get(path, headers=admin_headers).json()["chainage_m"] == [
-        10.0, 310.0, 610.0, 910.0, 1000.0,
-    ]  # fmt: skip
+        10.0,
+        310.0,
+        610.0,
+        910.0,
+        1000.0,
+    ]
 
 
 @pytest.mark.parametrize(
-    "line_id, query, fragment",
+    ("line_id", "query", "fragment"),
     [
         ("milano-bologna", "to=200001", "beyond the end"),
         ("milano-bologna", "from=-1", "at least 0"),
@@ -257,7 +270,8 @@ def test_bad_profile_ranges_are_422(
     response = client.get(f"/api/v1/lines/{line_id}/profile?{query}", headers=observer)
     assert response.status_code == 422, response.text
     detail = response.json()["detail"]
-    assert fragment in detail["message"] and detail["problems"]
+    assert fragment in detail["message"]
+    assert detail["problems"]
 
 
 def test_the_largest_profile_is_allowed(client: TestClient, observer: Headers) -> None:
@@ -279,11 +293,18 @@ def test_a_restart_keeps_the_imported_version_of_a_seed_line(make_client: MakeCl
 
 def test_openapi_describes_the_line_routes(client: TestClient) -> None:
     paths = client.get("/openapi.json").json()["paths"]
-    for path in ("", "/{line_id}", "/{line_id}/export", "/{line_id}/version",
-                 "/{line_id}/versions", "/{line_id}/profile"):  # fmt: skip
+    for path in (
+        "",
+        "/{line_id}",
+        "/{line_id}/export",
+        "/{line_id}/version",
+        "/{line_id}/versions",
+        "/{line_id}/profile",
+    ):
         operations = paths[f"/api/v1/lines{path}"]
         for operation in operations.values():
-            assert operation["description"] and "\n" not in operation["description"]
+            assert operation["description"]
+            assert "\n" not in operation["description"]
     body = paths["/api/v1/lines"]["post"]["requestBody"]["content"]["application/json"]
     assert body["schema"] == {"$ref": "#/components/schemas/Line"}
 

@@ -31,10 +31,18 @@ class Clock:
 
 def _status(line_id: str, position_m: float) -> m.StatusReport:
     return m.StatusReport(
-        vehicle_id="URV1", seq=0, sim_time_s=0.0, line_id=line_id, position_m=position_m,
-        speed_mps=5.0, acceleration_mps2=0.0, traction_force_n=0.0,
-        ato_state=m.AtoState.ENGAGED, etcs_mode=m.EtcsMode.FS, sc_state=m.ScState.AD,
-    )  # fmt: skip
+        vehicle_id="URV1",
+        seq=0,
+        sim_time_s=0.0,
+        line_id=line_id,
+        position_m=position_m,
+        speed_mps=5.0,
+        acceleration_mps2=0.0,
+        traction_force_n=0.0,
+        ato_state=m.AtoState.ENGAGED,
+        etcs_mode=m.EtcsMode.FS,
+        sc_state=m.ScState.AD,
+    )
 
 
 class Positions:
@@ -75,11 +83,15 @@ def test_issue_extend_shorten_revoke_numbered_in_order(rbc: RbcEmulator) -> None
     assert heard == [issued, extended, shortened, revoked]
     assert [msg.ma_id for msg in heard] == [1, 2, 3, 4]
     assert [msg.change for msg in heard] == [
-        Change.ISSUED, Change.EXTENDED, Change.SHORTENED, Change.REVOKED,
-    ]  # fmt: skip
+        Change.ISSUED,
+        Change.EXTENDED,
+        Change.SHORTENED,
+        Change.REVOKED,
+    ]
     assert [msg.issued_at_s for msg in heard] == [0.0, 10.0, 20.0, 20.0]
     assert {msg.line_version for msg in heard} == {"open-v1"}
-    assert issued.authority is not None and issued.authority.supervised_location_m == 950.0
+    assert issued.authority is not None
+    assert issued.authority.supervised_location_m == 950.0
     # The end's overlap and release speed belong to the old EoA: the extension drops them.
     assert extended.authority is not None
     assert (extended.authority.start_m, extended.authority.overlap_m) == (100.0, 0.0)
@@ -104,7 +116,7 @@ def test_extension_appends_a_section_and_shortening_cuts_them(rbc: RbcEmulator) 
 
 
 @pytest.mark.parametrize(
-    "operation, end_m, needle",
+    ("operation", "end_m", "needle"),
     [
         ("extend", 900.0, "must move the EoA forward"),
         ("extend", 20_000.0, "leaves line open"),
@@ -131,7 +143,7 @@ def test_no_authority_to_change(rbc: RbcEmulator) -> None:
 
 
 @pytest.mark.parametrize(
-    "fields, needle",
+    ("fields", "needle"),
     [
         ({"line_id": "nowhere"}, "holds no line 'nowhere'"),
         ({"line_version": "old"}, "is at version open-v1, not old"),
@@ -146,7 +158,8 @@ def test_issues_off_the_line_are_refused(
 ) -> None:
     with pytest.raises(MovementAuthorityRefusedError, match=needle):
         rbc.issue("URV1", _issue(**fields))
-    assert rbc.current("URV1") is None and rbc.last_ma_id("URV1") == 0
+    assert rbc.current("URV1") is None
+    assert rbc.last_ma_id("URV1") == 0
 
 
 def test_bad_vehicle_id_is_refused(rbc: RbcEmulator) -> None:
@@ -207,7 +220,8 @@ def test_a_failed_publication_changes_nothing() -> None:
     # The session is closed now: declaring the vehicle's publisher fails.
     with pytest.raises(TransportError):
         rbc.issue("URV1", _issue(line_version="v"))
-    assert rbc.current("URV1") is None and rbc.last_ma_id("URV1") == 0
+    assert rbc.current("URV1") is None
+    assert rbc.last_ma_id("URV1") == 0
     rbc.close()
 
 

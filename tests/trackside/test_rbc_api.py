@@ -27,17 +27,27 @@ ISSUE: dict[str, Any] = {"line_id": "bologna-ring", "start_m": 100.0, "end_of_au
 
 def _status(position_m: float) -> m.StatusReport:
     return m.StatusReport(
-        vehicle_id="URV1", seq=0, sim_time_s=1.0, line_id="bologna-ring", position_m=position_m,
-        speed_mps=4.0, acceleration_mps2=0.0, traction_force_n=0.0,
-        ato_state=m.AtoState.ENGAGED, etcs_mode=m.EtcsMode.FS, sc_state=m.ScState.AD,
-    )  # fmt: skip
+        vehicle_id="URV1",
+        seq=0,
+        sim_time_s=1.0,
+        line_id="bologna-ring",
+        position_m=position_m,
+        speed_mps=4.0,
+        acceleration_mps2=0.0,
+        traction_force_n=0.0,
+        ato_state=m.AtoState.ENGAGED,
+        etcs_mode=m.EtcsMode.FS,
+        sc_state=m.ScState.AD,
+    )
 
 
 def _current(onboard: zenoh.Session) -> m.MovementAuthorityReply:
     reply: m.MovementAuthorityReply = request(
-        onboard, MOVEMENT_AUTHORITY_CURRENT, m.MovementAuthorityRequest(vehicle_id="URV1"),
+        onboard,
+        MOVEMENT_AUTHORITY_CURRENT,
+        m.MovementAuthorityRequest(vehicle_id="URV1"),
         vehicle="URV1",
-    )  # fmt: skip
+    )
     return reply
 
 
@@ -171,7 +181,8 @@ def test_bad_issues_are_422_with_the_reason_and_change_nothing(
         response = client.post(MA, json=body, headers=admin_headers)
         assert response.status_code == 422, body
         detail = response.json()["detail"]
-        assert needle in detail["message"] and detail["problems"] == [detail["message"]]
+        assert needle in detail["message"]
+        assert detail["problems"] == [detail["message"]]
     assert client.get(MA, headers=admin_headers).status_code == 404
 
 
@@ -189,7 +200,8 @@ def test_changes_need_an_authority_and_the_right_direction(
     assert backwards.status_code == 422
     assert "must move the EoA forward" in backwards.json()["detail"]["message"]
     missing = client.post(f"{MA}/shorten", json={}, headers=admin_headers)
-    assert missing.status_code == 422 and "end_of_authority_m" in missing.text
+    assert missing.status_code == 422
+    assert "end_of_authority_m" in missing.text
     bad_vehicle = client.post("/api/v1/rbc/no%20such/ma", json=ISSUE, headers=admin_headers)
     assert bad_vehicle.status_code == 422
 
@@ -197,9 +209,10 @@ def test_changes_need_an_authority_and_the_right_direction(
 def test_roles(client: TestClient, admin_headers: dict[str, str]) -> None:
     for username, role in (("olga", "observer"), ("dario", "driver")):
         created = client.post(
-            "/api/v1/users", json={"username": username, "password": "password-1", "role": role},
+            "/api/v1/users",
+            json={"username": username, "password": "password-1", "role": role},
             headers=admin_headers,
-        )  # fmt: skip
+        )
         assert created.status_code == 201
     observer = login(client, "olga", "password-1")
     driver = login(client, "dario", "password-1")

@@ -56,7 +56,8 @@ def _run_lockstep(script: str, period_s: float = 0.1) -> list[tuple[float, str, 
         clock.now_s = tick * period_s
     refused = [o for o in runner.outcomes if o.error is not None]
     assert [(o.index, o.action.vehicle) for o in refused] == [(4, "URV2")]
-    assert refused[0].error is not None and "must move the EoA back" in refused[0].error
+    assert refused[0].error is not None
+    assert "must move the EoA back" in refused[0].error
     return sent
 
 
@@ -80,7 +81,8 @@ def test_runner_start_and_next_due() -> None:
     clock.now_s = 100.0
     rbc = RbcEmulator(clock=clock)
     runner = RbcScenarioRunner(parse_scenario(SCRIPT_YAML), rbc)
-    assert runner.start_s == 100.0 and runner.next_due_s == 100.0
+    assert runner.start_s == 100.0
+    assert runner.next_due_s == 100.0
     assert [o.action.action for o in runner.step()] == ["issue"]
     assert runner.next_due_s == 110.0
     clock.now_s = 109.9
@@ -88,7 +90,8 @@ def test_runner_start_and_next_due() -> None:
     clock.now_s = 110.0
     assert len(runner.step()) == 2
     current = rbc.current("URV1")
-    assert current is not None and current.change is m.MovementAuthorityChange.EXTENDED
+    assert current is not None
+    assert current.change is m.MovementAuthorityChange.EXTENDED
 
 
 def test_yaml_json_and_toml_files_load_alike(tmp_path: Path) -> None:
@@ -106,7 +109,7 @@ def test_yaml_json_and_toml_files_load_alike(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    "script, needles",
+    ("script", "needles"),
     [
         (
             "actions:\n  - {at_s: 0, vehicle: URV1, action: extend}\n"

@@ -23,21 +23,39 @@ pytestmark = pytest.mark.e2e
 V = "/api/v1/vehicles/URV1"
 PRINCIPALS = ("none", "observer", "other_driver", "driver", "admin")
 COMMANDS: dict[str, dict[str, Any]] = {
-    "engage": {}, "disengage": {}, "rd-target-speed": {"target_speed_kmh": 0.0},
-    "emergency-brake": {}, "eb-rearm": {"number": 0}, "etcs-isolation": {"number": 0},
-    "etcs-insertion": {"number": 0}, "vigilance-ack": {"number": 0},
-    "skip-stop": {"timing_point_id": "east"}, "train-hold": {"hold": False},
-}  # fmt: skip
+    "engage": {},
+    "disengage": {},
+    "rd-target-speed": {"target_speed_kmh": 0.0},
+    "emergency-brake": {},
+    "eb-rearm": {"number": 0},
+    "etcs-isolation": {"number": 0},
+    "etcs-insertion": {"number": 0},
+    "vigilance-ack": {"number": 0},
+    "skip-stop": {"timing_point_id": "east"},
+    "train-hold": {"hold": False},
+}
 JOURNEY = {
-    "id": "matrix", "line_id": "bologna-ring", "start_position_m": 0.0, "max_speed_mps": 10.0,
+    "id": "matrix",
+    "line_id": "bologna-ring",
+    "start_position_m": 0.0,
+    "max_speed_mps": 10.0,
     "timing_points": [
-        {"id": "east", "stopping_point_id": "east", "arrival_time_s": 400.0,
-         "end_of_journey": True},
+        {
+            "id": "east",
+            "stopping_point_id": "east",
+            "arrival_time_s": 400.0,
+            "end_of_journey": True,
+        },
     ],
-}  # fmt: skip
+}
 MA = {"line_id": "bologna-ring", "start_m": 100.0, "end_of_authority_m": 900.0}
-TSR = {"id": "works", "line_id": "bologna-ring", "start_m": 4000.0, "end_m": 4200.0,
-       "speed_kmh": 30.0}  # fmt: skip
+TSR = {
+    "id": "works",
+    "line_id": "bologna-ring",
+    "start_m": 4000.0,
+    "end_m": 4200.0,
+    "speed_kmh": 30.0,
+}
 
 
 @pytest.fixture(
@@ -126,13 +144,17 @@ RULES: dict[tuple[str, str], Rule] = {
 } | {
     ("POST", f"/api/v1/vehicles/{{vehicle_id}}/{name}"): Rule(
         "driver", hold=True, json=(lambda body=body: body)
-    )  # fmt: skip
+    )
     for name, body in COMMANDS.items()
 }
 PUBLIC = {("POST", "/api/v1/auth/token"), ("GET", "/healthz")}
 RANK = {"observer": 1, "driver": 2, "other_driver": 2, "admin": 3}
-PATH_VALUES = {"vehicle_id": "URV1", "line_id": "bologna-ring", "journey_id": "matrix",
-               "restriction_id": "works"}  # fmt: skip
+PATH_VALUES = {
+    "vehicle_id": "URV1",
+    "line_id": "bologna-ring",
+    "journey_id": "matrix",
+    "restriction_id": "works",
+}
 
 
 def _expected(rule: Rule, principal: str, path: str) -> int | tuple[int, ...]:
@@ -177,9 +199,12 @@ def test_auth_matrix(service: TestClient) -> None:
                 headers[principal] = headers_of(service, principal)
             auth = headers.get(principal, {})
             response = service.request(
-                method, path, headers=auth, params=rule.params,
+                method,
+                path,
+                headers=auth,
+                params=rule.params,
                 json=None if rule.json is None else rule.json(),
-            )  # fmt: skip
+            )
             expected = _expected(rule, principal, template)
             allowed = expected if isinstance(expected, tuple) else (expected,)
             if response.status_code not in allowed:
@@ -211,11 +236,13 @@ def test_a_second_driver_is_refused_while_the_first_holds(service: TestClient) -
     assert "alice" in command.json()["detail"]
     assert service.post(f"{V}/release", headers=bob).status_code == 409
     listed = service.get(V, headers=bob).json()
-    assert listed["holder"] == "alice" and listed["simulated_operator"] is False
+    assert listed["holder"] == "alice"
+    assert listed["simulated_operator"] is False
     assert service.post(f"{V}/release", headers=alice).json()["holder"] is None
     assert service.post(f"{V}/select", headers=bob).json()["holder"] == "bob"
     hint = service.post(f"{V}/engage", headers=alice)
-    assert hint.status_code == 409 and hint.json()["detail"] == "URV1 is held by bob"
+    assert hint.status_code == 409
+    assert hint.json()["detail"] == "URV1 is held by bob"
     assert service.post(f"{V}/release", headers=bob).status_code == 200
     assert service.post(f"{V}/engage", headers=alice).json()["detail"] == "select URV1 first"
 
@@ -234,8 +261,9 @@ def test_every_command_is_answered_by_the_vehicle_and_audited(service: TestClien
     # At power-up the VC holds the EB: nothing may engage yet, and the vehicle says why.
     assert answers["engage"]["accepted"] is False
     assert answers["emergency-brake"]["accepted"] is True
-    audit = service.get("/api/v1/audit", params={"vehicle_id": "URV1", "limit": 50},
-                        headers=admin).json()  # fmt: skip
+    audit = service.get(
+        "/api/v1/audit", params={"vehicle_id": "URV1", "limit": 50}, headers=admin
+    ).json()
     by_id = {
         entry["request"].get("command_id"): entry for entry in audit if entry["user"] == "alice"
     }
@@ -281,21 +309,25 @@ def test_vehicle_websocket_pushes_status_and_events(service: TestClient) -> None
     assert service.post(f"{V}/release", headers=admin).status_code == 200
     assert service.post(f"{V}/select", headers=alice).status_code == 200
     token = alice["Authorization"].removeprefix("Bearer ")
-    with pytest.raises(WebSocketDisconnect) as refused:
-        with service.websocket_connect("/api/v1/ws/vehicles/URV1?token=wrong") as socket:
-            socket.receive_json()
+    with (
+        pytest.raises(WebSocketDisconnect) as refused,
+        service.websocket_connect("/api/v1/ws/vehicles/URV1?token=wrong") as socket,
+    ):
+        socket.receive_json()
     assert refused.value.code == 1008
     with service.websocket_connect(f"/api/v1/ws/vehicles/URV1?token={token}") as socket:
         frame = socket.receive_json()
         while frame["type"] != "status":
             frame = socket.receive_json()
         assert frame["status"]["vehicle_id"] == "URV1"
-        assert frame["holder"] == "alice" and frame["simulated_operator"] is False
+        assert frame["holder"] == "alice"
+        assert frame["simulated_operator"] is False
         assert "operator_requests" in frame["status"]["vital_control"]
         # The operator's emergency brake is accepted in every state (a train hold is refused
         # at once, with no event, until a journey is accepted), so this test runs alone too.
         answer = service.post(f"{V}/emergency-brake", headers=alice)
-        assert answer.status_code == 200 and answer.json()["accepted"] is True
+        assert answer.status_code == 200
+        assert answer.json()["accepted"] is True
         codes: list[str] = []
         while "operator.emergency_brake" not in codes:
             frame = socket.receive_json()
@@ -324,7 +356,12 @@ def test_logout_revokes_and_logins_are_rate_limited(service: TestClient) -> None
     assert codes == [401] * limiter.max_failures + [429]
     # The address is blocked too, for every user, until the window passes.
     blocked = service.post("/api/v1/auth/token", data={"username": "olivia", "password": "x"})
-    assert blocked.status_code == 429 and int(blocked.headers["Retry-After"]) >= 1
+    assert blocked.status_code == 429
+    assert int(blocked.headers["Retry-After"]) >= 1
     limiter._failures.clear()  # the window passing, without waiting for it
-    assert service.post("/api/v1/auth/token", data={
-        "username": "olivia", "password": "observer-pw"}).status_code == 200  # fmt: skip
+    assert (
+        service.post(
+            "/api/v1/auth/token", data={"username": "olivia", "password": "observer-pw"}
+        ).status_code
+        == 200
+    )

@@ -64,7 +64,8 @@ def test_restart_while_engaged(router_endpoint: str, tmp_path: Path) -> None:
                 for path, rows in before.items():
                     assert after[path][: len(rows)] == rows, path  # nothing lost or changed
                 codes = [event["code"] for event in after[f"{V}/events"]]
-                assert "ato.engaged" in codes and "session.established" in codes
+                assert "ato.engaged" in codes
+                assert "session.established" in codes
         finally:
             vehicle.close()
 

@@ -20,16 +20,30 @@ Pending = list[tuple[m.Command, Callable[[m.CommandAck | None], None]]]
 
 def _status(vehicle: str, now_s: float, *requests: m.OperatorRequest) -> m.StatusReport:
     vital = m.VitalControlStatus(
-        eb_commanded=True, system_decay=False, etcs_isolated=False, supervision_state="monitoring",
-        brake_state="braking", etcs_state="inserted", standstill=True, odometry_efficient=True,
+        eb_commanded=True,
+        system_decay=False,
+        etcs_isolated=False,
+        supervision_state="monitoring",
+        brake_state="braking",
+        etcs_state="inserted",
+        standstill=True,
+        odometry_efficient=True,
         operator_requests=requests,
-    )  # fmt: skip
+    )
     return m.StatusReport(
-        vehicle_id=vehicle, seq=0, sim_time_s=now_s, line_id="bologna-ring", position_m=0.0,
-        speed_mps=0.0, acceleration_mps2=0.0, traction_force_n=0.0,
-        ato_state=m.AtoState.NOT_AVAILABLE, etcs_mode=m.EtcsMode.SR, sc_state=m.ScState.OFF,
+        vehicle_id=vehicle,
+        seq=0,
+        sim_time_s=now_s,
+        line_id="bologna-ring",
+        position_m=0.0,
+        speed_mps=0.0,
+        acceleration_mps2=0.0,
+        traction_force_n=0.0,
+        ato_state=m.AtoState.NOT_AVAILABLE,
+        etcs_mode=m.EtcsMode.SR,
+        sc_state=m.ScState.OFF,
         vital_control=vital,
-    )  # fmt: skip
+    )
 
 
 def _operator(**options: Any) -> tuple[SimulatedOperator, Pending]:
@@ -43,9 +57,12 @@ def _operator(**options: Any) -> tuple[SimulatedOperator, Pending]:
 
 def _ack(command: m.Command, accepted: bool) -> m.CommandAck:
     return m.CommandAck(
-        vehicle_id=command.vehicle_id, command_id=command.command_id, accepted=accepted,
-        reason=None if accepted else "not at standstill", sim_time_s=0.0,
-    )  # fmt: skip
+        vehicle_id=command.vehicle_id,
+        command_id=command.command_id,
+        accepted=accepted,
+        reason=None if accepted else "not at standstill",
+        sim_time_s=0.0,
+    )
 
 
 def test_step_answers_after_the_reaction_delay_once_and_only_configured_vehicles() -> None:
@@ -65,7 +82,8 @@ def test_step_answers_after_the_reaction_delay_once_and_only_configured_vehicles
     assert [answer.ack.accepted for answer in operator.take_answers() if answer.ack] == [True]
     assert operator.step(_status("URV1", 12.0, rearm)) == []  # answered: never again
     operator.step(_status("URV1", 12.2))  # the vehicle took the confirmation
-    assert operator._seen_s == {} and operator._sent == set()  # nothing kept for long runs
+    assert operator._seen_s == {}
+    assert operator._sent == set()
 
 
 def test_step_tries_again_after_a_refusal_or_a_timeout_and_skips_other_kinds() -> None:
@@ -98,10 +116,11 @@ def test_the_service_operator_rearms_a_real_vehicle_and_is_audited(
 ) -> None:
     url = f"sqlite:///{tmp_path / 'ts.db'}"
     with (
-        running_service(router_endpoint, url, simulated_operators=("URV1",),
-                        simulated_operator_reaction_s=0.2) as client,
+        running_service(
+            router_endpoint, url, simulated_operators=("URV1",), simulated_operator_reaction_s=0.2
+        ) as client,
         running_vehicle(router_endpoint),
-    ):  # fmt: skip
+    ):
         admin = headers_of(client, "admin")
         assert wait_for(lambda: _vehicle(client, admin).get("alive") is True)
         assert _vehicle(client, admin)["simulated_operator"] is True

@@ -15,10 +15,18 @@ from tests.conftest import wait_for
 
 def _status(vehicle: str, position_m: float) -> m.StatusReport:
     return m.StatusReport(
-        vehicle_id=vehicle, seq=0, sim_time_s=1.0, line_id="bologna-ring", position_m=position_m,
-        speed_mps=4.0, acceleration_mps2=0.1, traction_force_n=500.0,
-        ato_state=m.AtoState.NOT_AVAILABLE, etcs_mode=m.EtcsMode.SR, sc_state=m.ScState.RD,
-    )  # fmt: skip
+        vehicle_id=vehicle,
+        seq=0,
+        sim_time_s=1.0,
+        line_id="bologna-ring",
+        position_m=position_m,
+        speed_mps=4.0,
+        acceleration_mps2=0.1,
+        traction_force_n=500.0,
+        ato_state=m.AtoState.NOT_AVAILABLE,
+        etcs_mode=m.EtcsMode.SR,
+        sc_state=m.ScState.RD,
+    )
 
 
 def _vehicles(client: TestClient, headers: dict[str, str]) -> dict[str, dict[str, object]]:
@@ -89,25 +97,29 @@ def test_fleet_websocket_pushes_live_vehicles(
     _, onboard = zenoh_pair
     token = declare_liveliness(onboard, "ato/alive/ob/URV5")
     bearer = admin_headers["Authorization"].split()[1]
-    with TypedPublisher(onboard, STATUS, vehicle="URV5") as publisher:
-        with client.websocket_connect(f"/api/v1/ws/fleet?token={bearer}") as websocket:
-            positions: list[float] = []
-            for frame_index in range(40):
-                publisher.put(_status("URV5", 10.0 * frame_index))
-                frame = websocket.receive_json()
-                assert frame["type"] == "fleet"
-                vehicles = {v["id"]: v for v in frame["vehicles"]}
-                if vehicles.get("URV5", {}).get("status"):
-                    positions.append(vehicles["URV5"]["status"]["position_m"])
-                if len(set(positions)) >= 2:
-                    break
+    with (
+        TypedPublisher(onboard, STATUS, vehicle="URV5") as publisher,
+        client.websocket_connect(f"/api/v1/ws/fleet?token={bearer}") as websocket,
+    ):
+        positions: list[float] = []
+        for frame_index in range(40):
+            publisher.put(_status("URV5", 10.0 * frame_index))
+            frame = websocket.receive_json()
+            assert frame["type"] == "fleet"
+            vehicles = {v["id"]: v for v in frame["vehicles"]}
+            if vehicles.get("URV5", {}).get("status"):
+                positions.append(vehicles["URV5"]["status"]["position_m"])
+            if len(set(positions)) >= 2:
+                break
     assert len(set(positions)) >= 2, positions
     token.undeclare()
 
 
 @pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
 def test_fleet_websocket_refuses_a_bad_token(client: TestClient) -> None:
-    with pytest.raises(WebSocketDisconnect) as caught:
-        with client.websocket_connect("/api/v1/ws/fleet?token=wrong") as websocket:
-            websocket.receive_json()
+    with (
+        pytest.raises(WebSocketDisconnect) as caught,
+        client.websocket_connect("/api/v1/ws/fleet?token=wrong") as websocket,
+    ):
+        websocket.receive_json()
     assert caught.value.code == 1008

@@ -69,9 +69,12 @@ class VehiclePublic(BaseModel):
 
     @classmethod
     def from_snapshot(
-        cls, snapshot: VehicleSnapshot, *, holder: str | None = None,
+        cls,
+        snapshot: VehicleSnapshot,
+        *,
+        holder: str | None = None,
         simulated_operator: bool = False,
-    ) -> VehiclePublic:  # fmt: skip
+    ) -> VehiclePublic:
         report = snapshot.status
         status = None
         if report is not None:
@@ -82,9 +85,12 @@ class VehiclePublic(BaseModel):
                 **fields, age_s=snapshot.status_age_s, rate_ok=snapshot.status_rate_ok
             )
         return cls(
-            id=snapshot.id, alive=snapshot.alive, status=status, holder=holder,
+            id=snapshot.id,
+            alive=snapshot.alive,
+            status=status,
+            holder=holder,
             simulated_operator=simulated_operator,
-        )  # fmt: skip
+        )
 
 
 class LinePublic(BaseModel):
@@ -100,9 +106,13 @@ class LinePublic(BaseModel):
     @classmethod
     def from_summary(cls, summary: LineSummary) -> LinePublic:
         return cls(
-            id=summary.id, name=summary.name, version=summary.version,
-            length_m=summary.length_m, ring=summary.ring, etcs_level=summary.etcs_level,
-        )  # fmt: skip
+            id=summary.id,
+            name=summary.name,
+            version=summary.version,
+            length_m=summary.length_m,
+            ring=summary.ring,
+            etcs_level=summary.etcs_level,
+        )
 
 
 class LineVersionPublic(BaseModel):
@@ -119,10 +129,14 @@ class LineVersionPublic(BaseModel):
     @classmethod
     def from_summary(cls, summary: LineSummary) -> LineVersionPublic:
         return cls(
-            version=summary.version, name=summary.name, length_m=summary.length_m,
-            ring=summary.ring, etcs_level=summary.etcs_level, created_at=summary.created_at,
+            version=summary.version,
+            name=summary.name,
+            length_m=summary.length_m,
+            ring=summary.ring,
+            etcs_level=summary.etcs_level,
+            created_at=summary.created_at,
             current=summary.current,
-        )  # fmt: skip
+        )
 
 
 class LineVersionRef(BaseModel):
@@ -149,12 +163,17 @@ class LineProfilePublic(BaseModel):
     @classmethod
     def from_profile(cls, profile: LineProfile) -> LineProfilePublic:
         return cls(
-            id=profile.line_id, version=profile.version, ring=profile.ring,
-            length_m=profile.length_m, chainage_m=profile.chainage_m,
-            gradient_permille=profile.gradient_permille, curvature_per_m=profile.curvature_per_m,
-            speed_limit_mps=profile.speed_limit_mps, mrsp_mps=profile.mrsp_mps,
+            id=profile.line_id,
+            version=profile.version,
+            ring=profile.ring,
+            length_m=profile.length_m,
+            chainage_m=profile.chainage_m,
+            gradient_permille=profile.gradient_permille,
+            curvature_per_m=profile.curvature_per_m,
+            speed_limit_mps=profile.speed_limit_mps,
+            mrsp_mps=profile.mrsp_mps,
             altitude_m=profile.altitude_m,
-        )  # fmt: skip
+        )
 
 
 class ProblemsPublic(BaseModel):

@@ -33,13 +33,23 @@ class AuditResult(StrEnum):
 
 
 def audit_entry(
-    *, user: str, vehicle_id: str | None, action: str, request: dict[str, Any],
-    result: AuditResult, detail: str | None = None,
-) -> AuditEntry:  # fmt: skip
+    *,
+    user: str,
+    vehicle_id: str | None,
+    action: str,
+    request: dict[str, Any],
+    result: AuditResult,
+    detail: str | None = None,
+) -> AuditEntry:
     return AuditEntry(
-        at=datetime.now(UTC), username=user, vehicle_id=vehicle_id, action=action,
-        request=json.dumps(request, sort_keys=True), result=result.value, detail=detail,
-    )  # fmt: skip
+        at=datetime.now(UTC),
+        username=user,
+        vehicle_id=vehicle_id,
+        action=action,
+        request=json.dumps(request, sort_keys=True),
+        result=result.value,
+        detail=detail,
+    )
 
 
 def record(factory: sessionmaker[Session], entry: AuditEntry) -> None:

@@ -44,13 +44,22 @@ class CommandService:
         self._ids = itertools.count(time.time_ns() // 1000)
 
     def _audit(
-        self, user: User, vehicle_id: str, action: str, request: dict[str, Any],
-        result: audit.AuditResult, detail: str | None,
-    ) -> None:  # fmt: skip
+        self,
+        user: User,
+        vehicle_id: str,
+        action: str,
+        request: dict[str, Any],
+        result: audit.AuditResult,
+        detail: str | None,
+    ) -> None:
         entry = audit.audit_entry(
-            user=user.username, vehicle_id=vehicle_id, action=action, request=request,
-            result=result, detail=detail,
-        )  # fmt: skip
+            user=user.username,
+            vehicle_id=vehicle_id,
+            action=action,
+            request=request,
+            result=result,
+            detail=detail,
+        )
         audit.record(self._factory, entry)
 
     def _check(self, user: User, vehicle_id: str) -> None:
@@ -71,9 +80,11 @@ class CommandService:
         try:
             self._check(user, vehicle_id)
             command = m.Command(
-                vehicle_id=vehicle_id, command_id=next(self._ids), issued_by=user.username,
+                vehicle_id=vehicle_id,
+                command_id=next(self._ids),
+                issued_by=user.username,
                 body=body,
-            )  # fmt: skip
+            )
             ack = self._bridge.command(command, timeout_s=self.timeout_s)
         except (NotFoundError, ConflictError) as exc:
             self._audit(user, vehicle_id, action, request, audit.AuditResult.REFUSED, str(exc))
@@ -85,8 +96,9 @@ class CommandService:
             self._audit(user, vehicle_id, action, request, audit.AuditResult.FAILED, str(exc))
             raise VehicleLinkError(f"{vehicle_id}: {exc}") from exc
         result = audit.AuditResult.ACCEPTED if ack.accepted else audit.AuditResult.REFUSED
-        self._audit(user, vehicle_id, action, request | {"command_id": ack.command_id}, result,
-                    ack.reason)  # fmt: skip
+        self._audit(
+            user, vehicle_id, action, request | {"command_id": ack.command_id}, result, ack.reason
+        )
         return ack
 
     def send_journey_profile(
@@ -110,9 +122,13 @@ class CommandService:
                     f"journey {journey_id} no longer valid on line version {line_version}"
                 )
             profile = journey_profile_message(
-                stored.journey, check, vehicle_id=vehicle_id, version=stored.version,
-                track_data_version=line_version, status=m.JourneyProfileStatus.VALID,
-            )  # fmt: skip
+                stored.journey,
+                check,
+                vehicle_id=vehicle_id,
+                version=stored.version,
+                track_data_version=line_version,
+                status=m.JourneyProfileStatus.VALID,
+            )
             ack = self._bridge.send_journey_profile(profile, timeout_s=timeout_s)
         except TracksideError as exc:
             self._audit(user, vehicle_id, action, request, audit.AuditResult.REFUSED, str(exc))

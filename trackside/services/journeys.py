@@ -62,10 +62,14 @@ def create_journey(db: Session, journey: Journey, *, created_by: str) -> StoredJ
         select(func.max(JourneyRow.version)).where(JourneyRow.journey_id == journey.id)
     )
     row = JourneyRow(
-        journey_id=journey.id, version=(latest or 0) + 1, line_id=journey.line_id,
-        line_version=line_version, document=journey.model_dump_json(), created_by=created_by,
+        journey_id=journey.id,
+        version=(latest or 0) + 1,
+        line_id=journey.line_id,
+        line_version=line_version,
+        document=journey.model_dump_json(),
+        created_by=created_by,
         created_at=datetime.now(UTC),
-    )  # fmt: skip
+    )
     db.add(row)
     try:
         db.flush()
@@ -105,6 +109,9 @@ def list_journeys(db: Session) -> list[StoredJourney]:
 
 def _stored(row: JourneyRow) -> StoredJourney:
     return StoredJourney(
-        journey=Journey.model_validate_json(row.document), version=row.version,
-        line_version=row.line_version, created_by=row.created_by, created_at=row.created_at,
-    )  # fmt: skip
+        journey=Journey.model_validate_json(row.document),
+        version=row.version,
+        line_version=row.line_version,
+        created_by=row.created_by,
+        created_at=row.created_at,
+    )

@@ -144,14 +144,17 @@ def line_profile(
     track = TrackMap(line)
     altitudes = [track.altitude_m(c) for c in chainages] if line.geodetic else None
     return LineProfile(
-        line_id=line.id, version=track.version, ring=line.ring, length_m=line.length_m,
+        line_id=line.id,
+        version=track.version,
+        ring=line.ring,
+        length_m=line.length_m,
         chainage_m=chainages,
         gradient_permille=[track.gradient_permille(c) for c in chainages],
         curvature_per_m=[track.curvature_per_m(c) for c in chainages],
         speed_limit_mps=[track.speed_limit_mps(c) for c in chainages],
         mrsp_mps=[track.mrsp_mps(c) for c in chainages],
         altitude_m=altitudes,
-    )  # fmt: skip
+    )
 
 
 def profile_chainages(

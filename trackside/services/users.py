@@ -35,9 +35,11 @@ def create_user(db: Session, username: str, password: str, role: Role) -> User:
     if len(password) < 4:
         raise ValueError("password must have at least 4 characters")
     user = User(
-        username=username, password_hash=hash_password(password), role=role.value,
+        username=username,
+        password_hash=hash_password(password),
+        role=role.value,
         created_at=_now(),
-    )  # fmt: skip
+    )
     db.add(user)
     try:
         db.flush()
@@ -68,10 +70,13 @@ def issue_token(db: Session, user: User, ttl_s: float) -> str:
     issued = _now()
     db.add(
         ApiToken(
-            token_hash=token_digest(token), user_id=user.id, issued_at=issued,
-            expires_at=issued + timedelta(seconds=ttl_s), revoked=False,
+            token_hash=token_digest(token),
+            user_id=user.id,
+            issued_at=issued,
+            expires_at=issued + timedelta(seconds=ttl_s),
+            revoked=False,
         )
-    )  # fmt: skip
+    )
     db.flush()
     return token
 

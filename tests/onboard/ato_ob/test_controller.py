@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import math
 import random
@@ -167,14 +168,16 @@ def test_configuration_waits_for_the_track_data_version() -> None:
 def test_the_unmanned_train_continues_after_the_dwell_time() -> None:
     drive = _engaged_between_stops()
     stopped = drive.next(mode=EtcsMode.AD, dwell_elapsed=False)
-    assert stopped.state is S.AVAILABLE and stopped.continue_after_dwell
+    assert stopped.state is S.AVAILABLE
+    assert stopped.continue_after_dwell
     assert (stopped.mode_request, stopped.automatic_driving_requested) == (ModeRequest.OFF, False)
     assert stopped.not_ready_reasons == (Condition.DWELL_TIME_ELAPSED,)
     for _ in range(20):
         assert drive.next(dwell_elapsed=False).state is S.AVAILABLE
     assert drive.next().state is S.READY
     again = drive.next()
-    assert again.state is S.ENGAGED and not again.continue_after_dwell
+    assert again.state is S.ENGAGED
+    assert not again.continue_after_dwell
     assert drive.controller.transitions[-1].trigger is Trigger.AUTOMATIC_REENGAGEMENT
 
 
@@ -208,7 +211,8 @@ def test_the_end_of_journey_ends_engagement_at_standstill_only() -> None:
     drive = _engaged_between_stops()
     assert drive.next(end_of_journey_reached=True, **MOVING).state is S.ENGAGED
     end = drive.next(mode=EtcsMode.AD, end_of_journey_reached=True)
-    assert end.state is S.NOT_AVAILABLE and not end.continue_after_dwell
+    assert end.state is S.NOT_AVAILABLE
+    assert not end.continue_after_dwell
     assert end.unavailable_reasons == (Condition.END_OF_JOURNEY_NOT_REACHED,)
 
 
@@ -228,7 +232,8 @@ def test_a_lost_session_stops_the_train_at_the_next_stopping_point() -> None:
     assert drive.next(trackside_session_alive=False, **MOVING).stop_at_next_stopping_point
     stopped = drive.next(mode=EtcsMode.AD, trackside_session_alive=False)
     assert stopped.state is S.AVAILABLE
-    assert not (stopped.stop_at_next_stopping_point or stopped.continue_after_dwell)
+    assert not (stopped.stop_at_next_stopping_point)
+    assert not (stopped.continue_after_dwell)
     assert drive.controller.transitions[-1].trigger is Trigger.FALLBACK_STOP_COMPLETED
     assert drive.next(trackside_session_alive=False).state is S.AVAILABLE
     assert drive.next().state is S.READY
@@ -282,7 +287,8 @@ def test_entering_full_supervision_displayed_is_not_yet_available() -> None:
 def test_the_initial_output_is_np_and_holds_the_vehicle() -> None:
     out = AtoObController(start_s=3.0).output
     assert (out.time_s, out.state, out.mode_request) == (3.0, S.NP, ModeRequest.OFF)
-    assert not (out.traction_allowed or out.full_service_brake)
+    assert not (out.traction_allowed)
+    assert not (out.full_service_brake)
 
 
 # -- determinism and invariants ---------------------------------------------------------------
@@ -292,24 +298,35 @@ def _random_run(seed: int, steps: int = 1500) -> tuple[list[AtoObOutput], list[A
     rng = random.Random(seed)
     controller = AtoObController()
     outputs = []
-    flags = ("journey_profile_valid", "dwell_elapsed", "standstill", "at_stopping_point",
-             "trackside_session_alive", "movement_authority_allows_departure")  # fmt: skip
+    flags = (
+        "journey_profile_valid",
+        "dwell_elapsed",
+        "standstill",
+        "at_stopping_point",
+        "trackside_session_alive",
+        "movement_authority_allows_departure",
+    )
     for k in range(steps):
         now_s = round(k * DT_S, 9)
         changes = {name: rng.random() > 0.1 for name in flags}
         etcs = {"service_brake": rng.random() < 0.03, "received_s": now_s - rng.random() * 1.2}
         mode = rng.choice([EtcsMode.FS, EtcsMode.AD, EtcsMode.AD, EtcsMode.SR])
-        step_inputs = inputs(now_s, mode=mode, etcs=etcs, internal_fault=rng.random() < 0.01,
-                             end_of_journey_reached=rng.random() < 0.02, **changes)  # fmt: skip
+        step_inputs = inputs(
+            now_s,
+            mode=mode,
+            etcs=etcs,
+            internal_fault=rng.random() < 0.01,
+            end_of_journey_reached=rng.random() < 0.02,
+            **changes,
+        )
         out = controller.step(now_s, step_inputs)
         outputs.append(out)
-        request = rng.choice([None, None, None, controller.engage, controller.disengage,
-                              controller.reset])  # fmt: skip
+        request = rng.choice(
+            [None, None, None, controller.engage, controller.disengage, controller.reset]
+        )
         if request is not None:
-            try:
+            with contextlib.suppress(RequestRefusedError):
                 request(now_s)
-            except RequestRefusedError:
-                pass
     return outputs, controller.transitions
 
 
@@ -328,11 +345,15 @@ def test_random_runs_keep_the_invariants() -> None:
         assert out.full_service_brake <= (out.state in (S.DISENGAGING, S.FAILURE))
         assert out.automatic_driving_requested is (out.state is S.ENGAGED)
         assert out.stop_at_next_stopping_point <= (out.state is S.ENGAGED)
-    rows = {(source, rule.target, rule.trigger) for rule in ATO_OB_TRANSITIONS
-            for source in rule.sources}  # fmt: skip
+    rows = {
+        (source, rule.target, rule.trigger)
+        for rule in ATO_OB_TRANSITIONS
+        for source in rule.sources
+    }
     for previous, transition in zip(transitions, transitions[1:], strict=False):
         assert (transition.source, transition.target, transition.trigger) in rows
-        assert transition.source is previous.target and transition.time_s >= previous.time_s
+        assert transition.source is previous.target
+        assert transition.time_s >= previous.time_s
 
 
 # -- with the ETCS onboard ----------------------------------------------------------------------
@@ -383,7 +404,7 @@ def test_bad_calls_raise_input_errors() -> None:
         etcs_status(0.0, end_of_authority_distance_m=math.inf)
     with pytest.raises(AtoObInputError):
         AtoObController(disengaging_s=0.0)
-    with pytest.raises(ValueError):  # the input errors are ValueErrors
+    with pytest.raises(ValueError, match="before 2.0 s"):  # the input errors are ValueErrors
         controller.engage(0.0)
 
 

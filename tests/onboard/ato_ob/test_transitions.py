@@ -29,7 +29,7 @@ def test_rows_are_numbered_in_priority_order() -> None:
 
 
 @pytest.mark.parametrize(
-    "rule, source", ROWS, ids=[f"{r.number}-{s}-{r.target}-{r.trigger}" for r, s in ROWS]
+    ("rule", "source"), ROWS, ids=[f"{r.number}-{s}-{r.target}-{r.trigger}" for r, s in ROWS]
 )
 def test_each_row_is_selected_from_each_of_its_sources(
     rule: TransitionRule, source: AtoState
@@ -146,7 +146,7 @@ def _expected_outputs(out: AtoObOutput) -> None:
 
 
 @pytest.mark.parametrize(
-    "rule, source", ROWS, ids=[f"{r.number}-{s}-{r.target}-{r.trigger}" for r, s in ROWS]
+    ("rule", "source"), ROWS, ids=[f"{r.number}-{s}-{r.target}-{r.trigger}" for r, s in ROWS]
 )
 def test_each_row_is_taken_by_the_controller(rule: TransitionRule, source: AtoState) -> None:
     drive = SETUPS.get(rule.trigger, in_state)(source)
@@ -159,7 +159,8 @@ def test_each_row_is_taken_by_the_controller(rule: TransitionRule, source: AtoSt
         rule.trigger,
     )
     assert drive.state is rule.target
-    assert taken[-1].time_s == drive.now_s and taken[-1].reason
+    assert taken[-1].time_s == drive.now_s
+    assert taken[-1].reason
     _expected_outputs(drive.controller.output)
 
 

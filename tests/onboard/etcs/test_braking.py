@@ -166,8 +166,11 @@ def test_gradient_changes_apply_with_the_train_length() -> None:
     track_map = TrackMap(builder.build(geodetic_step_m=500.0))
     length = URV_TRAIN_DATA.length_m
     steps = lowest_gradient_under_train(gradient_steps(track_map, 0.0, 12_000.0), length)
-    assert steps == [(0.0, 5_000.0 + length, 0.0), (5_000.0 + length, 8_000.0, 10.0),
-                     (8_000.0, 12_000.0, -10.0)]  # fmt: skip
+    assert steps == [
+        (0.0, 5_000.0 + length, 0.0),
+        (5_000.0 + length, 8_000.0, 10.0),
+        (8_000.0, 12_000.0, -10.0),
+    ]
     model = BrakingModel()
     limits = model.target_limits(
         Target(TargetKind.SUPERVISED_LOCATION, 9_000.0), track_map=track_map, from_m=0.0
@@ -210,10 +213,16 @@ def test_braking_times_of_the_urv_and_of_a_lambda_train() -> None:
     t_eb, t_sb = conversion_model_build_up_times_s(400.0)
     assert_allclose((t_eb, t_sb), (2.30 + 0.17 * 16, 3.0 + 6.0 + 1.6), atol=1e-12)
     lambda_train = TrainData(
-        length_m=400.0, max_speed_mps=160 * KMH, brake_model=BrakeModelType.LAMBDA,
-        a_brake_emergency_mps2=1.0, a_brake_service_mps2=0.8, t_brake_emergency_s=t_eb,
-        t_brake_service_s=t_sb, t_traction_cut_off_s=3.0, traction_cut_off_implemented=False,
-    )  # fmt: skip
+        length_m=400.0,
+        max_speed_mps=160 * KMH,
+        brake_model=BrakeModelType.LAMBDA,
+        a_brake_emergency_mps2=1.0,
+        a_brake_service_mps2=0.8,
+        t_brake_emergency_s=t_eb,
+        t_brake_service_s=t_sb,
+        t_traction_cut_off_s=3.0,
+        traction_cut_off_implemented=False,
+    )
     national = NationalValues()
     at_zero = braking_times(lambda_train, national=national)
     above_zero = braking_times(lambda_train, national=national, target_speed_mps=20.0)
@@ -252,9 +261,11 @@ def test_the_bisection_limit_function_is_the_limit_arithmetic_bit_for_bit(
     track_map = TrackMap(builder.build(geodetic_step_m=500.0))
     national = NationalValues(inhibit_speed_accuracy_compensation=inhibit_compensation)
     model = BrakingModel(national=national)
-    targets = [Target(TargetKind.END_OF_AUTHORITY, 9_000.0),
-               Target(TargetKind.SUPERVISED_LOCATION, 9_500.0),
-               Target(TargetKind.SPEED_DECREASE, 10_000.0, 40 * KMH)]  # fmt: skip
+    targets = [
+        Target(TargetKind.END_OF_AUTHORITY, 9_000.0),
+        Target(TargetKind.SUPERVISED_LOCATION, 9_500.0),
+        Target(TargetKind.SPEED_DECREASE, 10_000.0, 40 * KMH),
+    ]
     speeds = [0.0, 1e-3, 5.0, 30 * KMH, 30 * KMH + 1e-9, 11.0, 40 * KMH, 90.0, 140.0, 600.0]
     for target in targets:
         limits = model.target_limits(target, track_map=track_map, from_m=0.0)

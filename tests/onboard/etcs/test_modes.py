@@ -31,7 +31,7 @@ ROWS = [
 
 
 @pytest.mark.parametrize(
-    "transition, source, level",
+    ("transition", "source", "level"),
     ROWS,
     ids=[f"{s}-{t.target}-{t.condition}-L{int(lv)}" for t, s, lv in ROWS],
 )
@@ -43,7 +43,8 @@ def test_each_row_is_taken_from_each_of_its_sources(
 
 def test_no_row_leaves_a_mode_it_does_not_name() -> None:
     for transition in MODE_TRANSITIONS:
-        assert transition.sources <= MODELLED_MODES and transition.target in MODELLED_MODES
+        assert transition.sources <= MODELLED_MODES
+        assert transition.target in MODELLED_MODES
         for mode in MODELLED_MODES - transition.sources:
             for level in transition.levels:
                 chosen = select_transition(mode, {transition.condition}, level)
@@ -55,7 +56,8 @@ def test_level_decides_the_trip_condition_number() -> None:
     passed = {ModeCondition.END_OF_AUTHORITY_PASSED}
     one = select_transition(M.FS, passed, EtcsLevel.LEVEL_1)
     two = select_transition(M.FS, passed, EtcsLevel.LEVEL_2)
-    assert one is not None and two is not None
+    assert one is not None
+    assert two is not None
     assert (one.condition_number, two.condition_number) == (12, 16)
 
 
@@ -66,15 +68,18 @@ def test_priorities_isolation_first_then_trip() -> None:
         ModeCondition.AUTOMATIC_DRIVING_DISENGAGED,
     }
     chosen = select_transition(M.AD, conditions, EtcsLevel.LEVEL_2)
-    assert chosen is not None and chosen.target is M.IS
+    assert chosen is not None
+    assert chosen.target is M.IS
     chosen = select_transition(M.AD, conditions - {ModeCondition.ISOLATED}, EtcsLevel.LEVEL_2)
-    assert chosen is not None and chosen.target is M.TR
+    assert chosen is not None
+    assert chosen.target is M.TR
     chosen = select_transition(
         M.SB,
         {ModeCondition.AUTHORITY_AND_TRACK_DESCRIPTION, ModeCondition.START_IN_STAFF_RESPONSIBLE},
         EtcsLevel.LEVEL_1,
     )
-    assert chosen is not None and chosen.target is M.FS
+    assert chosen is not None
+    assert chosen.target is M.FS
 
 
 # -- through the onboard -------------------------------------------------------------------------
@@ -96,7 +101,8 @@ def _run(etcs: EtcsOnboard, from_m: float, to_m: float, speed_kmh: float) -> Non
 def test_start_in_staff_responsible_then_full_supervision_at_a_balise_group() -> None:
     track_map = level_line(level=1, groups=((1, 500.0, 2_000.0), (2, 3_000.0, None)))
     etcs = EtcsOnboard(track_map, position_m=100.0)
-    assert etcs.level is EtcsLevel.LEVEL_1 and etcs.mode is M.SB
+    assert etcs.level is EtcsLevel.LEVEL_1
+    assert etcs.mode is M.SB
     etcs.start_of_mission(0.0)
     assert etcs.mode is M.SR
     out = etcs.step(0.1, 100.0, 10 * KMH)
@@ -131,7 +137,8 @@ def test_trip_at_the_end_of_authority_then_post_trip_and_back_to_full_supervisio
         now_s += DT_S
         position_m += 20 * KMH * DT_S
         out = etcs.step(now_s, position_m, 20 * KMH)
-    assert out.mode is M.TR and out.emergency_brake
+    assert out.mode is M.TR
+    assert out.emergency_brake
     assert out.odometry.min_safe_front_m > eoa_m >= out.odometry.min_safe_front_m - 20 * KMH * DT_S
     assert _taken(etcs)[-1] == (M.FS, M.TR, 16)
     with pytest.raises(TransitionRefusedError):
@@ -140,7 +147,8 @@ def test_trip_at_the_end_of_authority_then_post_trip_and_back_to_full_supervisio
     for speed_kmh in (15.0, 5.0, 0.0):
         now_s += DT_S
         out = etcs.step(now_s, position_m, speed_kmh * KMH)
-        assert out.emergency_brake and out.mode is M.TR
+        assert out.emergency_brake
+        assert out.mode is M.TR
     assert (
         etcs.receive_movement_authority(
             MovementAuthority(reference_m=0.0, end_of_authority_m=4_000.0), now_s
@@ -151,7 +159,8 @@ def test_trip_at_the_end_of_authority_then_post_trip_and_back_to_full_supervisio
     assert etcs.mode is M.PT
     now_s += DT_S
     out = etcs.step(now_s, position_m, 0.0)
-    assert not out.emergency_brake and out.permitted_speed_mps == 0.0
+    assert not out.emergency_brake
+    assert out.permitted_speed_mps == 0.0
     etcs.receive_movement_authority(
         MovementAuthority(reference_m=0.0, end_of_authority_m=4_000.0), now_s
     )
@@ -203,7 +212,8 @@ def test_automatic_driving_engaged_and_left_on_a_brake_or_a_disengagement() -> N
     etcs.step(0.1, 140.0, 0.0)
     assert etcs.mode is M.AD  # the request stands until it can be granted
     etcs.step(0.2, 140.0, 107 * KMH)  # SB from CSM
-    assert etcs.mode is M.FS and _taken(etcs)[-1] == (M.AD, M.FS, 24)
+    assert etcs.mode is M.FS
+    assert _taken(etcs)[-1] == (M.AD, M.FS, 24)
     etcs.step(0.3, 140.0, 0.0)
     etcs.step(0.4, 140.0, 0.0)
     assert etcs.mode is M.FS  # needs a new engagement
@@ -248,12 +258,15 @@ def test_balise_group_at_the_end_of_authority_in_release_speed_monitoring_trips(
 
 
 def test_isolation_from_any_mode_and_insertion_back_to_stand_by() -> None:
-    etcs = in_full_supervision(level_line(speed_kmh=100.0), position_m=100.0,
-                               end_of_authority_m=9_000.0)  # fmt: skip
+    etcs = in_full_supervision(
+        level_line(speed_kmh=100.0), position_m=100.0, end_of_authority_m=9_000.0
+    )
     assert etcs.step(0.1, 100.0, 110 * KMH).emergency_brake
     etcs.isolate(0.2)
     out = etcs.step(0.3, 110.0, 110 * KMH)
-    assert out.mode is M.IS and not (out.emergency_brake or out.service_brake)
+    assert out.mode is M.IS
+    assert not (out.emergency_brake)
+    assert not (out.service_brake)
     assert etcs.movement_authority is None
     etcs.insert(0.4)
     assert _taken(etcs)[-2:] == [(M.FS, M.IS, None), (M.IS, M.SB, None)]

@@ -41,10 +41,14 @@ def test_supervised_location_is_overlap_then_danger_point_then_end_of_authority(
 def test_overlap_timer_falls_back_to_the_danger_point() -> None:
     ma = _in_force(
         MovementAuthority(
-            reference_m=0.0, end_of_authority_m=1_000.0, danger_point_m=50.0, overlap_m=200.0,
-            overlap_timer_s=30.0, overlap_timer_start_m=300.0,
+            reference_m=0.0,
+            end_of_authority_m=1_000.0,
+            danger_point_m=50.0,
+            overlap_m=200.0,
+            overlap_timer_s=30.0,
+            overlap_timer_start_m=300.0,
         )
-    )  # fmt: skip
+    )
     # The timer starts when the max-safe front end passes 300 m before the EoA (800 m).
     assert not ma.update(100.0, min_safe_front_m=700.0, max_safe_front_m=790.0)
     assert not ma.update(110.0, min_safe_front_m=720.0, max_safe_front_m=810.0)
@@ -110,8 +114,11 @@ def test_level_1_packet_becomes_a_level_1_authority() -> None:
     packet = MovementAuthorityPacket(end_of_authority_m=800.0, overlap_m=50.0)
     ma = MovementAuthority.from_packet(packet, reference_m=150.0)
     assert (ma.level, ma.reference_m, ma.end_of_authority_m, ma.overlap_m) == (
-        EtcsLevel.LEVEL_1, 150.0, 800.0, 50.0,
-    )  # fmt: skip
+        EtcsLevel.LEVEL_1,
+        150.0,
+        800.0,
+        50.0,
+    )
 
 
 @pytest.mark.parametrize(

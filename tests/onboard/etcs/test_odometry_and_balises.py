@@ -55,8 +55,10 @@ def test_onboard_interval_resets_at_each_group_with_the_linked_accuracy() -> Non
     assert widths[3_000.0] == pytest.approx(5.0 + 5.0)
     assert widths[4_000.0] == pytest.approx(5.0 + 0.05 * 1_000.0 + 5.0)
     reading = etcs.last_balise_reading
-    assert reading is not None and reading.balise_group_id == 8
-    assert reading.header.nid_bg == 8 and reading.header.q_link == 1
+    assert reading is not None
+    assert reading.balise_group_id == 8
+    assert reading.header.nid_bg == 8
+    assert reading.header.q_link == 1
     assert reading.header.m_mcount == 1
 
 
@@ -76,9 +78,12 @@ def test_a_balise_group_delivers_its_packets() -> None:
     builder = LineBuilder(id="packets", name="Packets", etcs_level=1)
     builder.straight(5_000.0, speed_kmh=120.0, gradient_permille=2.0)
     builder.balise_group(
-        3, 500.0, authority_m=2_000.0, profile_m=2_500.0,
+        3,
+        500.0,
+        authority_m=2_000.0,
+        profile_m=2_500.0,
         packets=(LevelTransitionPacket(distance_m=300.0, level=2),),
-    )  # fmt: skip
+    )
     builder.balise_group(4, 1_500.0)
     track_map = TrackMap(builder.build(geodetic_step_m=500.0))
     group = track_map.line.balise_groups[0]
@@ -87,7 +92,8 @@ def test_a_balise_group_delivers_its_packets() -> None:
     assert reading.movement_authority.level is EtcsLevel.LEVEL_1
     assert reading.movement_authority.end_of_authority_m == 2_000.0
     assert reading.static_speed_profile_end_m == reading.gradient_end_m == 3_000.0
-    assert reading.level_transition is not None and reading.level_transition.location_m == 800.0
+    assert reading.level_transition is not None
+    assert reading.level_transition.location_m == 800.0
     assert [g.balise_group_id for g in reading.linked_groups] == [4]
     assert reading.linked_groups[0].location_m == 1_500.0
     assert (reading.header.nid_bg, reading.header.q_link, reading.header.q_updown) == (3, 0, 1)

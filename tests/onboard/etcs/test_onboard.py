@@ -51,15 +51,18 @@ def _lap(track_map: TrackMap, *, steps: int = 2_000) -> list[EtcsOutput]:
 def test_a_lap_of_the_seed_ring_runs_in_full_supervision_without_intervention() -> None:
     outputs = _lap(TrackMap(load_seed_line("bologna-ring")))
     modes = [o.mode for o in outputs]
-    assert modes[0] is EtcsMode.SR and modes[-1] is EtcsMode.FS
+    assert modes[0] is EtcsMode.SR
+    assert modes[-1] is EtcsMode.FS
     assert set(modes) == {EtcsMode.SR, EtcsMode.FS}
     assert not any(o.service_brake or o.emergency_brake for o in outputs)
     assert {o.lrbg_id for o in outputs} == {None, 101, 102, 103, 104}
     # The permitted speed reached the 80 km/h line speed and the 60 km/h curves.
     permitted_kmh = {round(o.permitted_speed_mps / KMH) for o in outputs}
     assert {40, 60, 80} <= permitted_kmh
-    assert all(o.end_of_authority_distance_m is None or o.end_of_authority_distance_m > 500
-               for o in outputs)  # fmt: skip
+    assert all(
+        o.end_of_authority_distance_m is None or o.end_of_authority_distance_m > 500
+        for o in outputs
+    )
 
 
 def test_the_same_inputs_give_the_same_outputs() -> None:
@@ -70,7 +73,7 @@ def test_the_same_inputs_give_the_same_outputs() -> None:
 
 
 @pytest.mark.parametrize(
-    "now_s, position_m, speed_mps, acceleration_mps2",
+    ("now_s", "position_m", "speed_mps", "acceleration_mps2"),
     [
         (1.0, 0.0, -1.0, 0.0),
         (1.0, 0.0, math.nan, 0.0),
@@ -86,7 +89,8 @@ def test_bad_step_inputs_raise_typed_errors(
     etcs = EtcsOnboard(level_line(), position_m=0.0)
     with pytest.raises(EtcsInputError) as caught:
         etcs.step(now_s, position_m, speed_mps, acceleration_mps2=acceleration_mps2)
-    assert isinstance(caught.value, EtcsError) and isinstance(caught.value, ValueError)
+    assert isinstance(caught.value, EtcsError)
+    assert isinstance(caught.value, ValueError)
 
 
 def test_time_must_not_go_back_across_calls() -> None:

@@ -52,9 +52,13 @@ def test_a_two_percent_diameter_error_stays_inside_the_interval_and_is_corrected
     track_map = level_line(groups=GROUPS)
     etcs = _onboard(track_map)
     rig = _rig(
-        track_map, position_m=0.0, speed_mps=30.0, reads_long_front=0.02, reads_long_rear=0.02,
+        track_map,
+        position_m=0.0,
+        speed_mps=30.0,
+        reads_long_front=0.02,
+        reads_long_rear=0.02,
         reader_errors_m=(0.4, -0.5, 0.3),
-    )  # fmt: skip
+    )
     cycles = rig.drive(etcs, 160.0)  # 4.8 km
     assert all(_covered(cycle) for cycle in cycles)
     assert {c.output.lrbg_id for c in cycles} == {None, 1, 2, 3}
@@ -104,9 +108,11 @@ def test_a_group_is_read_at_the_odometer_interpolated_to_its_detection_time() ->
     rig = _rig(track_map, position_m=901.0, speed_mps=25.0)
     cycles = rig.drive(etcs, 4.0)
     read = cycles[-1]
-    assert read.output.lrbg_id == 5 and cycles[-2].output.lrbg_id is None
+    assert read.output.lrbg_id == 5
+    assert cycles[-2].output.lrbg_id is None
     reading = etcs.last_balise_reading
-    assert reading is not None and reading.balise_group_id == 5
+    assert reading is not None
+    assert reading.balise_group_id == 5
     # Detected mid-cycle, at the instant the front end was at 1000 m: the odometer there.
     assert reading.time_s == pytest.approx(3.96, abs=1e-6)
     odometer = etcs.odometer
@@ -135,20 +141,25 @@ def test_a_missed_linked_group_commands_the_service_brake_to_standstill() -> Non
     reacted = next(c for c in cycles if c.output.linking_events)
     (event,) = reacted.output.linking_events
     assert (event.balise_group_id, event.fault, event.reaction, event.applied) == (
-        2, LinkingFault.MISSED, LinkReaction.SERVICE_BRAKE, True,
-    )  # fmt: skip
+        2,
+        LinkingFault.MISSED,
+        LinkReaction.SERVICE_BRAKE,
+        True,
+    )
     assert (event.expected_location_m, event.location_accuracy_m) == (1_000.0, 5.0)
     # Reported once, when the min-safe front end passed the window's end, 1005 m.
     assert sum(len(c.output.linking_events) for c in cycles) == 1
     assert reacted.output.odometry.min_safe_front_m > 1_005.0
     assert 1_005.0 < reacted.true_front_m < 1_005.0 + 50.0
     assert etcs.linking_events == [event]
-    assert reacted.output.service_brake and not reacted.output.emergency_brake
+    assert reacted.output.service_brake
+    assert not reacted.output.emergency_brake
     # Held while the train runs on; revoked once it stands still.
     assert all(c.output.service_brake for c in cycles if c.output.time_s >= reacted.output.time_s)
     stopping = rig.drive(etcs, 40.0, -0.7)
     assert stopping[0].output.service_brake
-    assert not stopping[-1].output.service_brake and stopping[-1].true_speed_mps == 0.0
+    assert not stopping[-1].output.service_brake
+    assert stopping[-1].true_speed_mps == 0.0
     assert etcs.mode is EtcsMode.FS
 
 
@@ -158,11 +169,14 @@ def test_a_missed_linked_group_with_train_trip_trips() -> None:
     rig = _rig(track_map, position_m=0.0, speed_mps=20.0, missed_ids=frozenset({2}))
     cycles = rig.drive(etcs, 60.0)
     reacted = next(c for c in cycles if c.output.linking_events)
-    assert reacted.output.mode is EtcsMode.TR and reacted.output.emergency_brake
+    assert reacted.output.mode is EtcsMode.TR
+    assert reacted.output.emergency_brake
     change = etcs.mode_changes[-1]
     assert (change.source, change.target, change.transition.condition_number) == (
-        EtcsMode.FS, EtcsMode.TR, 17,
-    )  # fmt: skip
+        EtcsMode.FS,
+        EtcsMode.TR,
+        17,
+    )
 
 
 def test_no_reaction_only_reports() -> None:
@@ -205,7 +219,8 @@ def test_a_linked_group_read_outside_its_window_reacts() -> None:
     assert [(e.balise_group_id, e.fault) for e in reacted.output.linking_events] == [
         (2, LinkingFault.OUTSIDE_WINDOW)
     ]
-    assert reacted.output.lrbg_id == 2 and reacted.output.service_brake
+    assert reacted.output.lrbg_id == 2
+    assert reacted.output.service_brake
 
 
 def test_runs_on_sensors_are_deterministic() -> None:
@@ -213,9 +228,13 @@ def test_runs_on_sensors_are_deterministic() -> None:
         track_map = level_line(groups=GROUPS)
         etcs = _onboard(track_map)
         rig = _rig(
-            track_map, position_m=0.0, speed_mps=5.0, reads_long_front=0.015,
-            reads_long_rear=-0.01, reader_errors_m=(0.3, -0.2, 0.1),
-        )  # fmt: skip
+            track_map,
+            position_m=0.0,
+            speed_mps=5.0,
+            reads_long_front=0.015,
+            reads_long_rear=-0.01,
+            reader_errors_m=(0.3, -0.2, 0.1),
+        )
         return rig.drive(etcs, 30.0, 1.0) + rig.drive(etcs, 30.0)
 
     assert run() == run()
@@ -247,7 +266,8 @@ def test_the_given_motion_path_checks_linking_too() -> None:
     etcs.step(1.0, 100.0, 20.0)
     etcs.pass_balise_group(track_map.line.balise_groups[0], 1.0)
     out = etcs.step(2.0, 1_000.0, 20.0)
-    assert out.mode is EtcsMode.FS and not out.linking_events
+    assert out.mode is EtcsMode.FS
+    assert not out.linking_events
     out = etcs.step(3.0, 1_080.0, 20.0)  # min-safe front end past 1005 m: group 2 missed
     assert [e.fault for e in out.linking_events] == [LinkingFault.MISSED]
     assert out.mode is EtcsMode.TR

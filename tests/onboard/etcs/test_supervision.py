@@ -53,8 +53,11 @@ def test_ceiling_speed_ramp_reaches_each_status_at_its_margin() -> None:
     assert all(out.monitoring is Monitoring.CEILING_SPEED for out in outputs)
     statuses = [out.supervision_status for out in outputs]
     assert [s for k, s in enumerate(statuses) if k == 0 or s != statuses[k - 1]] == [
-        S.NORMAL, S.OVERSPEED, S.WARNING, S.INTERVENTION,
-    ]  # fmt: skip
+        S.NORMAL,
+        S.OVERSPEED,
+        S.WARNING,
+        S.INTERVENTION,
+    ]
     # MRSP 100 km/h: dV_warning 4, dV_sbi 5.5, dV_ebi 7.5 km/h (below 110 km/h).
     thresholds = {
         "overspeed": (_first(outputs, speeds, lambda o: o.supervision_status is S.OVERSPEED), 100),
@@ -74,22 +77,27 @@ def test_emergency_brake_is_released_only_at_standstill() -> None:
         level_line(speed_kmh=100.0), position_m=1_000.0, end_of_authority_m=28_000.0
     )
     out = _ramp(etcs, 1_000.0, [109.0])[-1]
-    assert out.emergency_brake and out.supervision_status is S.INTERVENTION
+    assert out.emergency_brake
+    assert out.supervision_status is S.INTERVENTION
     for out in _ramp(etcs, 1_000.0, [90.0, 50.0, 10.0, 1.0]):
         assert out.emergency_brake
         assert out.supervision_status is S.INTERVENTION
         assert out.traction_cut
     out = _ramp(etcs, 1_000.0, [0.0])[-1]
-    assert not (out.emergency_brake or out.service_brake or out.traction_cut)
+    assert not (out.emergency_brake)
+    assert not (out.service_brake)
+    assert not (out.traction_cut)
     assert out.supervision_status is S.NORMAL
 
 
 def test_emergency_brake_released_once_its_cause_is_gone_when_q_nvemrrls_says_so() -> None:
     national = NationalValues(emergency_brake_release_at_standstill=False)
     etcs = in_full_supervision(
-        level_line(speed_kmh=100.0), position_m=1_000.0, end_of_authority_m=28_000.0,
+        level_line(speed_kmh=100.0),
+        position_m=1_000.0,
+        end_of_authority_m=28_000.0,
         national=national,
-    )  # fmt: skip
+    )
     assert _ramp(etcs, 1_000.0, [109.0])[-1].emergency_brake
     assert not _ramp(etcs, 1_000.0, [99.0])[-1].emergency_brake
 
@@ -110,7 +118,8 @@ def test_without_a_service_brake_the_emergency_brake_intervenes() -> None:
     etcs = EtcsOnboard(track_map, train=train, position_m=1_000.0)
     etcs.receive_movement_authority(MovementAuthority(reference_m=0.0, end_of_authority_m=2.8e4), 0)
     out = _ramp(etcs, 1_000.0, [106.0])[-1]
-    assert out.emergency_brake and not out.service_brake
+    assert out.emergency_brake
+    assert not out.service_brake
 
 
 def test_target_speed_ramp_towards_the_end_of_authority_reaches_every_status() -> None:
@@ -182,9 +191,11 @@ def test_release_speed_monitoring_replaces_the_curves_near_the_end_of_authority(
     assert out.monitoring is Monitoring.RELEASE_SPEED
     assert out.permitted_speed_mps == pytest.approx(20 * KMH)
     assert out.release_speed_mps == pytest.approx(20 * KMH)
-    assert out.supervision_status is S.NORMAL and not out.emergency_brake
+    assert out.supervision_status is S.NORMAL
+    assert not out.emergency_brake
     out = etcs.step(0.2, 1_991.0, 21 * KMH)
-    assert out.emergency_brake and out.supervision_status is S.INTERVENTION
+    assert out.emergency_brake
+    assert out.supervision_status is S.INTERVENTION
 
 
 def test_latch_forced_emergency_brake_and_reset() -> None:
@@ -193,6 +204,7 @@ def test_latch_forced_emergency_brake_and_reset() -> None:
     assert latch.update(Demand(), standstill=True, forced_emergency_brake=True).emergency_brake
     assert not latch.update(Demand(), standstill=True).emergency_brake
     latch.update(Demand(status=S.WARNING), standstill=False)
-    assert latch.commands.traction_cut and latch.status(S.WARNING) is S.WARNING
+    assert latch.commands.traction_cut
+    assert latch.status(S.WARNING) is S.WARNING
     latch.reset()
     assert not latch.commands.traction_cut

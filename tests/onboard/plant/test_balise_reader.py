@@ -40,7 +40,8 @@ def test_exact_readings_are_at_the_group_interpolated_within_the_tick() -> None:
     assert [d.group.id for d in detections] == [101]
     # The front reaches 150 m after 9.996 m at 7 m/s, inside the tick ending at 1.43 s.
     assert detections[0].time_s == pytest.approx(9.996 / 7.0, abs=1e-9)
-    assert reader.read == 1 and reader.missed == 0
+    assert reader.read == 1
+    assert reader.missed == 0
 
 
 def test_two_laps_of_the_ring_read_every_group_each_lap() -> None:
@@ -79,8 +80,11 @@ def test_location_errors_have_the_documented_sigma_and_bound() -> None:
 
 
 def test_missed_groups_and_windows_are_not_reported_but_counted() -> None:
-    by_id = BaliseReader(RING, rng=np.random.default_rng(1),
-                         faults=BaliseReaderFaults(missed_group_ids=frozenset({102})))  # fmt: skip
+    by_id = BaliseReader(
+        RING,
+        rng=np.random.default_rng(1),
+        faults=BaliseReaderFaults(missed_group_ids=frozenset({102})),
+    )
     assert [d.group.id for d in _drive(by_id, 0.0, 5000.0, 50.0)] == [101, 103, 104]
     assert (by_id.read, by_id.missed) == (3, 1)
     # Group 103 (2950 m) passes at about 59 s at 50 m/s.
@@ -92,8 +96,10 @@ def test_missed_groups_and_windows_are_not_reported_but_counted() -> None:
 
 def test_same_seed_same_readings_another_seed_others() -> None:
     def times(seed: int) -> list[float]:
-        return [d.time_s for d in _drive(BaliseReader(RING, rng=np.random.default_rng(seed)),
-                                         0.0, 5000.0, 30.0)]  # fmt: skip
+        return [
+            d.time_s
+            for d in _drive(BaliseReader(RING, rng=np.random.default_rng(seed)), 0.0, 5000.0, 30.0)
+        ]
 
     assert times(11) == times(11)
     assert times(11) != times(12)

@@ -26,8 +26,12 @@ def _modules(seed: int = 0, **errors: object) -> InterfaceModules:
 
 
 def _cruise(time_s: float, speed_mps: float = 20.0, start_m: float = 200.0) -> TruthSample:
-    return TruthSample(time_s=time_s, position_m=start_m + speed_mps * time_s,
-                       speed_mps=speed_mps, acceleration_mps2=0.0)  # fmt: skip
+    return TruthSample(
+        time_s=time_s,
+        position_m=start_m + speed_mps * time_s,
+        speed_mps=speed_mps,
+        acceleration_mps2=0.0,
+    )
 
 
 def _run(modules: InterfaceModules, seconds: float, speed_mps: float = 20.0) -> list[InputPacket]:
@@ -49,8 +53,15 @@ def test_noiseless_imu_is_the_truth_and_scale_factors_multiply_it() -> None:
     sample = scaled.imu_sample(standing)
     assert_allclose(sample[0], scaled.accelerometer_scale[0] * exact[0], atol=1e-12)
     assert_allclose(sample[2], scaled.accelerometer_scale[2] * exact[2], atol=1e-12)
-    factors = np.array([_modules(seed, accelerometer_scale_sigma=0.001).accelerometer_scale
-                        for seed in range(400)]) - 1.0  # fmt: skip
+    factors = (
+        np.array(
+            [
+                _modules(seed, accelerometer_scale_sigma=0.001).accelerometer_scale
+                for seed in range(400)
+            ]
+        )
+        - 1.0
+    )
     # 1200 draws: the σ estimate's own σ is about 2 %.
     assert factors.std() == pytest.approx(0.001, rel=0.08)
 
@@ -59,8 +70,11 @@ def test_the_imu_bias_walks_as_a_random_walk_of_the_set_intensity() -> None:
     intensity, seconds = 1e-3, 9
     changes = []
     for seed in range(40):
-        modules = _modules(seed, accelerometer_bias_walk_mps2_per_sqrt_s=intensity,
-                           gyro_bias_walk_radps_per_sqrt_s=intensity)  # fmt: skip
+        modules = _modules(
+            seed,
+            accelerometer_bias_walk_mps2_per_sqrt_s=intensity,
+            gyro_bias_walk_radps_per_sqrt_s=intensity,
+        )
         before = modules.accelerometer_bias_mps2 + modules.gyro_bias_radps
         _run(modules, seconds + 0.005)
         after = modules.accelerometer_bias_mps2 + modules.gyro_bias_radps
@@ -72,9 +86,11 @@ def test_the_imu_bias_walks_as_a_random_walk_of_the_set_intensity() -> None:
 def test_the_odometer_reads_the_worn_wheel_in_whole_counts() -> None:
     count_m = 0.0036
     modules = InterfaceModules(
-        RING, rng=np.random.default_rng(0),
-        noise=dataclasses.replace(NOISELESS, odometer_count_m=count_m), diameter_error=0.02,
-    )  # fmt: skip
+        RING,
+        rng=np.random.default_rng(0),
+        noise=dataclasses.replace(NOISELESS, odometer_count_m=count_m),
+        diameter_error=0.02,
+    )
     packets = _run(modules, 30.0, speed_mps=13.7)
     odometer = [p.doubles for p in packets if p.sensor_type is SensorType.ODOMETER]
     speeds = np.array([speed for speed, _ in odometer])
@@ -112,8 +128,12 @@ def test_the_gps_error_is_gauss_markov_with_its_sigma_and_correlation_time() -> 
 
 
 def test_multipath_jumps_are_rare_offsets_of_set_size_and_duration() -> None:
-    modules = _modules(4, gps_multipath_rate_per_s=0.02, gps_multipath_offset_m=(5.0, 5.0),
-                       gps_multipath_duration_s=(3.0, 3.0))  # fmt: skip
+    modules = _modules(
+        4,
+        gps_multipath_rate_per_s=0.02,
+        gps_multipath_offset_m=(5.0, 5.0),
+        gps_multipath_duration_s=(3.0, 3.0),
+    )
     sizes = []
     for second in range(5000):
         modules.gps_sample(_cruise(float(second), speed_mps=0.0))

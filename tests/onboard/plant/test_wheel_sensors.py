@@ -25,22 +25,39 @@ DT_S = 0.01
 
 def _bogie_truth(time_s: float, front_radps: float, rear_radps: float) -> BogieTruth:
     return BogieTruth(
-        time_s=time_s, position_m=0.0, speed_mps=0.0, acceleration_mps2=0.0,
-        wheel_speed_front_radps=front_radps, wheel_speed_rear_radps=rear_radps,
-        wheel_radius_m=0.46, motor_torque_front_nm=0.0, motor_torque_rear_nm=0.0,
-        brake_torque_front_nm=0.0, brake_torque_rear_nm=0.0, normal_force_front_n=0.0,
-        normal_force_rear_n=0.0, creepage_front=0.0, creepage_rear=0.0, traction_energy_j=0.0,
+        time_s=time_s,
+        position_m=0.0,
+        speed_mps=0.0,
+        acceleration_mps2=0.0,
+        wheel_speed_front_radps=front_radps,
+        wheel_speed_rear_radps=rear_radps,
+        wheel_radius_m=0.46,
+        motor_torque_front_nm=0.0,
+        motor_torque_rear_nm=0.0,
+        brake_torque_front_nm=0.0,
+        brake_torque_rear_nm=0.0,
+        normal_force_front_n=0.0,
+        normal_force_rear_n=0.0,
+        creepage_front=0.0,
+        creepage_rear=0.0,
+        traction_energy_j=0.0,
         regen_energy_j=0.0,
-    )  # fmt: skip
+    )
 
 
 def test_a_worn_wheel_reads_long_on_the_point_mass_model() -> None:
     wheels = WheelSensors(rng=np.random.default_rng(0), diameter_error=0.02)
     readings = [
-        wheels.step(TruthSample(time_s=k * DT_S, position_m=250.0 + 10.0 * k * DT_S,
-                                speed_mps=10.0, acceleration_mps2=0.0))
+        wheels.step(
+            TruthSample(
+                time_s=k * DT_S,
+                position_m=250.0 + 10.0 * k * DT_S,
+                speed_mps=10.0,
+                acceleration_mps2=0.0,
+            )
+        )
         for k in range(1001)
-    ]  # fmt: skip
+    ]
     last = readings[-1]
     assert readings[0].travel_front_m == 0.0
     assert_allclose(last.travel_front_m, 1.02 * 100.0, atol=1e-9)
@@ -110,8 +127,10 @@ def test_pulse_counts_quantise_the_speed_without_losing_travel() -> None:
     count_m, period_s, speed_mps = 0.0036, 0.05, 7.3
     counter = PulseCounter(count_m)
     resolution = count_m / period_s
-    speeds = [counter.speed(speed_mps * k * period_s, speed_mps, k * period_s, period_s)
-              for k in range(400)]  # fmt: skip
+    speeds = [
+        counter.speed(speed_mps * k * period_s, speed_mps, k * period_s, period_s)
+        for k in range(400)
+    ]
     # Every sample is a whole number of counts over the interval, within one count of the truth.
     counts = np.array(speeds) / resolution
     assert_allclose(counts, np.round(counts), atol=1e-6)

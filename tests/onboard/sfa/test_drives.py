@@ -44,7 +44,8 @@ def test_milano_at_300_kmh_within_a_metre(milano: TrackMap) -> None:
     assert result.localisation.estimate is not None
     assert result.localisation.estimate.speed_mps > 40.0
     stats = result.stats()
-    assert stats.position_rms_m <= 1.0 and stats.speed_rms_kmh <= 0.2
+    assert stats.position_rms_m <= 1.0
+    assert stats.speed_rms_kmh <= 0.2
 
 
 def test_sixty_second_gps_outage_stays_within_ten_metres(ring: TrackMap) -> None:
@@ -54,17 +55,21 @@ def test_sixty_second_gps_outage_stays_within_ten_metres(ring: TrackMap) -> None
         ring,
     )
     assert result.stats(outage).position_max_m <= 10.0
-    assert result.listener.status is not None and result.listener.status.gps_alive
+    assert result.listener.status is not None
+    assert result.listener.status.gps_alive
 
 
 def test_twenty_percent_loss_with_reordering_within_two_metres(milano: TrackMap) -> None:
     result = run_lockstep(
         DriveSettings(
-            line_id="milano-bologna", duration_s=150.0, cruise_kmh=300.0, seed=4,
+            line_id="milano-bologna",
+            duration_s=150.0,
+            cruise_kmh=300.0,
+            seed=4,
             link_faults=LinkFaults(loss_rate=0.2, reorder_rate=0.2),
         ),
         milano,
-    )  # fmt: skip
+    )
     assert result.stats().position_rms_m <= 2.0
     assert result.link.counters["lost"] > 0.15 * result.link.counters["sent"]
     assert result.listener.buffer.lost > 0
@@ -82,9 +87,11 @@ def test_odometer_failure_is_detected_within_a_second(ring: TrackMap, faults: Se
     result = run_lockstep(DriveSettings(duration_s=70.0, seed=5, sensor_faults=faults), ring)
     assert bool(result.odometer_alive[result.times_s < 60.0].all())
     delay = result.detection_delay_s(60.0)
-    assert delay is not None and delay <= 1.0
+    assert delay is not None
+    assert delay <= 1.0
     estimate = result.localisation.estimate
-    assert estimate is not None and estimate.health is Health.DEGRADED
+    assert estimate is not None
+    assert estimate.health is Health.DEGRADED
     assert estimate.odometer_alive is False
     assert result.stats(TimeWindow(60.0, 70.0)).position_max_m <= 5.0
 
@@ -95,16 +102,20 @@ def test_imu_alone_runs_degraded(ring: TrackMap) -> None:
         ring,
     )
     estimate = result.localisation.estimate
-    assert estimate is not None and estimate.health is Health.DEGRADED
+    assert estimate is not None
+    assert estimate.health is Health.DEGRADED
     assert result.listener.counters.disabled > 0
     assert result.stats().position_max_m < 100.0
 
 
 def test_same_seed_same_numbers_bit_for_bit(ring: TrackMap) -> None:
     settings = DriveSettings(
-        duration_s=20.0, seed=7, link_faults=LinkFaults(loss_rate=0.1, reorder_rate=0.1,
-                                                        duplicate_rate=0.05, corrupt_rate=0.05),
-    )  # fmt: skip
+        duration_s=20.0,
+        seed=7,
+        link_faults=LinkFaults(
+            loss_rate=0.1, reorder_rate=0.1, duplicate_rate=0.05, corrupt_rate=0.05
+        ),
+    )
     first, second = run_lockstep(settings, ring), run_lockstep(settings, ring)
     assert np.array_equal(first.position_errors_m, second.position_errors_m)
     assert first.listener.counters == second.listener.counters

@@ -47,7 +47,8 @@ def test_odometer_outlier_is_gated_and_a_consistent_one_accepted(ring: TrackMap)
     flt.initialise(0.0, 10.0, 0.0)
     assert flt.odometer(0.05, 10.02, 0.05)
     assert not flt.odometer(0.10, 30.0, 0.05)
-    assert flt.rejected["odometer"] == 1 and flt.accepted["odometer"] == 1
+    assert flt.rejected["odometer"] == 1
+    assert flt.accepted["odometer"] == 1
     assert flt.speed_mps == pytest.approx(10.0, abs=0.05)
 
 
@@ -135,7 +136,8 @@ def test_a_multipath_jump_is_gated_and_a_lasting_shift_reanchors(ring: TrackMap)
     for second in range(config.gps_reanchor_after):
         standstill_until(float(second))
         assert not flt.gps(float(second), latitude, longitude)
-    assert flt.rejected["gps"] == config.gps_reanchor_after and flt.reanchored == 0
+    assert flt.rejected["gps"] == config.gps_reanchor_after
+    assert flt.reanchored == 0
     assert flt.chainage_m == pytest.approx(500.0, abs=1e-6)
     standstill_until(float(config.gps_reanchor_after))
     assert flt.gps(float(config.gps_reanchor_after), latitude, longitude)
@@ -221,7 +223,8 @@ def test_an_imu_sample_outside_the_vehicles_envelope_is_gated_out(ring: TrackMap
     for tick in range(1, 101):
         accepted = flt.imu(tick * 0.01, spike if tick == 50 else 2.2 + gravity)
         assert accepted is (tick != 50)
-    assert flt.rejected["imu"] == 1 and flt.accepted["imu"] == 99
+    assert flt.rejected["imu"] == 1
+    assert flt.accepted["imu"] == 99
     assert flt.speed_mps == pytest.approx(12.2, abs=1e-6)
     for braking, accepted in ((-1.5, True), (-3.0, False), (2.5, True), (3.5, False)):
         assert flt.imu(flt.epoch_s + 0.01, braking + gravity) is accepted

@@ -45,9 +45,13 @@ def test_malformed_datagrams_are_dropped_and_counted_by_reason(ring: TrackMap) -
     for datagram in bad:
         assert core.feed(datagram, 0.0) == []
     assert dict(core.counters.dropped) == {
-        "truncated": 1, "length_mismatch": 1, "unknown_type": 1, "count_mismatch": 1,
-        "non_finite": 1, "invalid_value": 1,
-    }  # fmt: skip
+        "truncated": 1,
+        "length_mismatch": 1,
+        "unknown_type": 1,
+        "count_mismatch": 1,
+        "non_finite": 1,
+        "invalid_value": 1,
+    }
     assert core.counters.accounted(len(core.buffer)) == core.counters.received == 6
 
 
@@ -56,7 +60,8 @@ def test_sensor_packets_before_ground_truth_are_ignored_then_it_initialises(
 ) -> None:
     core = ListenerCore(ring)
     core.feed(packet(SensorType.IMU, 0, *IMU_LEVEL), 0.0)
-    assert core.counters.before_ground_truth == 1 and core.status is None
+    assert core.counters.before_ground_truth == 1
+    assert core.status is None
     outputs = core.feed(packet(SensorType.GROUND_TRUTH, 1, 5.0, 0.0, 0.0, 1.5), 0.0)
     assert core.status is not None
     assert core.status.chainage_m == pytest.approx(1500.0)
@@ -103,7 +108,8 @@ def test_a_corrupted_seq_no_far_ahead_is_dropped_and_moves_nothing(ring: TrackMa
         core.feed(packet(SensorType.IMU, seq, *IMU_LEVEL), 0.01 * seq)
     core.poll(1.0)
     assert core.counters.dropped == {"out_of_window": 2}
-    assert core.counters.processed["imu"] == 38 and core.buffer.lost == 0
+    assert core.counters.processed["imu"] == 38
+    assert core.buffer.lost == 0
     assert core.filter.epoch_s == pytest.approx(10.37)
 
 
@@ -140,10 +146,19 @@ def test_a_strobe_off_schedule_is_dropped_until_the_next_strobe_confirms_it(
     from the last STROBE, and the next STROBE on schedule is taken (after a lost one too)."""
     core = ListenerCore(ring)
     core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
-    epochs = feed_seconds(core, [(10.0, 10.0, True), (11.0, 11.84375, True), (12.0, 12.0, True),
-                                 (13.0, 13.0, False), (14.0, 14.0, True),
-                                 # The sender's clock steps: followed from its second STROBE.
-                                 (15.0, 500.0, True), (16.0, 501.0, True)])  # fmt: skip
+    epochs = feed_seconds(
+        core,
+        [
+            (10.0, 10.0, True),
+            (11.0, 11.84375, True),
+            (12.0, 12.0, True),
+            (13.0, 13.0, False),
+            (14.0, 14.0, True),
+            # The sender's clock steps: followed from its second STROBE.
+            (15.0, 500.0, True),
+            (16.0, 501.0, True),
+        ],
+    )
     assert epochs == pytest.approx([10.99, 11.99, 12.99, 13.99, 14.99, 15.99, 501.99], abs=0.015)
     assert core.counters.dropped == {"strobe_unconfirmed": 2}
     assert core.counters.processed["strobe"] == 4
@@ -167,7 +182,8 @@ def test_a_seq_no_corrupted_ahead_within_the_window_is_misplaced_not_processed(
         core.feed(datagram, 10.0 + 0.008 * index)
     core.poll(12.0)
     assert core.counters.dropped == {"misplaced": 1}
-    assert core.counters.processed["imu"] == 99 and core.buffer.lost == 1
+    assert core.counters.processed["imu"] == 99
+    assert core.buffer.lost == 1
     assert core.counters.accounted(len(core.buffer)) == core.counters.received
     assert core.filter.epoch_s == pytest.approx(10.98)  # one IMU short, as for any loss
 
@@ -179,7 +195,8 @@ def test_reordered_packets_are_processed_in_order(ring: TrackMap) -> None:
     shuffled = [stream[i] for i in (0, 2, 1, 4, 3, 8, 5, 7, 6)]
     for datagram in shuffled:
         core.feed(datagram, 0.0)
-    assert core.counters.processed["imu"] == 8 and not core.counters.dropped
+    assert core.counters.processed["imu"] == 8
+    assert not core.counters.dropped
     assert core.filter.epoch_s == pytest.approx(0.07)
 
 
@@ -189,9 +206,11 @@ def test_obcu_link_is_lost_after_three_seconds_without_ack(ring: TrackMap) -> No
     assert not core.link_lost(12.9)
     assert core.link_lost(13.1)
     core.on_ack(encode_ack_seq(0), 13.2)
-    assert not core.link_lost(16.1) and core.link_lost(16.3)
+    assert not core.link_lost(16.1)
+    assert core.link_lost(16.3)
     core.on_ack(b"\x00", 16.4)
-    assert core.counters.acks_malformed == 1 and core.last_ack_seq == 0
+    assert core.counters.acks_malformed == 1
+    assert core.last_ack_seq == 0
 
 
 def encode_ack_seq(seq: int) -> bytes:
@@ -218,7 +237,8 @@ def test_imu_alone_is_degraded_and_a_silent_imu_and_odometer_is_lost(ring: Track
     core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
     for seq in range(1, 80):
         core.feed(packet(SensorType.IMU, seq, *IMU_LEVEL), 0.0)
-    assert core.status is not None and core.status.health is Health.DEGRADED
+    assert core.status is not None
+    assert core.status.health is Health.DEGRADED
     assert core.counters.processed["imu"] == 79
     everything = ListenerCore(ring)
     everything.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
@@ -227,13 +247,15 @@ def test_imu_alone_is_degraded_and_a_silent_imu_and_odometer_is_lost(ring: Track
     for second in range(1, 6):  # the IMU and the odometer silent: STROBEs alone, once a second
         everything.feed(packet(SensorType.STROBE, 2 + second, float(second)), 0.0)
     everything.feed(packet(SensorType.GPS, 8, 44.512, 11.318, 42.0), 0.0)
-    assert everything.status is not None and everything.status.health is Health.LOST
+    assert everything.status is not None
+    assert everything.status.health is Health.LOST
 
 
 def test_fuzz_ten_thousand_datagrams_all_accounted() -> None:
     result = fuzz_listener(10_000, seed=11)
     assert result.fed == result.received == result.accounted == 10_000
-    assert result.processed["imu"] > 100 and result.dropped["length_mismatch"] > 100
+    assert result.processed["imu"] > 100
+    assert result.dropped["length_mismatch"] > 100
 
 
 @pytest.mark.timeout(60)
@@ -241,8 +263,9 @@ def test_fuzz_over_udp_into_a_running_listener(ring: TrackMap) -> None:
     core = ListenerCore(ring)
     datagrams = [d for d in fuzz_datagrams(np.random.default_rng(5), 3000) if d[:1] != bytes([10])]
     stop = threading.Event()
-    with ListenerRunner(core, input_address=("127.0.0.1", 0),
-                        obcu_address=("127.0.0.1", 9)) as runner:  # fmt: skip
+    with ListenerRunner(
+        core, input_address=("127.0.0.1", 0), obcu_address=("127.0.0.1", 9)
+    ) as runner:
         thread = threading.Thread(target=runner.run, args=(stop,))
         thread.start()
         try:
@@ -274,7 +297,8 @@ def test_a_restarted_sender_is_followed_to_its_new_time_base(ring: TrackMap) -> 
     core.feed(packet(SensorType.IMU, 2, *IMU_LEVEL), 1.0)
     assert core.counters.processed["ground_truth"] == 2
     assert core.filter.epoch_s == pytest.approx(0.0)
-    assert core.status is not None and core.status.chainage_m == pytest.approx(200.0, abs=0.1)
+    assert core.status is not None
+    assert core.status.chainage_m == pytest.approx(200.0, abs=0.1)
     assert core.status.health is Health.OK
 
 
@@ -288,6 +312,12 @@ def test_the_filters_gating_is_counted_for_the_listeners_user(ring: TrackMap) ->
     core.feed(packet(SensorType.GPS, 4, latitude, longitude, 0.0), 0.1)
     core.poll(1.0)
     assert core.filter_counters() == {
-        "imu_accepted": 0, "imu_rejected": 0, "odometer_accepted": 1, "odometer_rejected": 1,
-        "gps_accepted": 0, "gps_rejected": 1, "fix_accepted": 0, "gps_reanchored": 0,
-    }  # fmt: skip
+        "imu_accepted": 0,
+        "imu_rejected": 0,
+        "odometer_accepted": 1,
+        "odometer_rejected": 1,
+        "gps_accepted": 0,
+        "gps_rejected": 1,
+        "fix_accepted": 0,
+        "gps_reanchored": 0,
+    }

@@ -58,10 +58,12 @@ def test_no_output_for_a_second_means_lost_and_garbage_is_counted(ring: TrackMap
     localisation = Localisation(ring)
     localisation.receive(b"\x00" * 5, 0.0)
     assert localisation.counters["malformed"] == 1
-    assert localisation.step(0.0) == [] and localisation.estimate is None
+    assert localisation.step(0.0) == []
+    assert localisation.estimate is None
     localisation.receive(output(0, 1.0, 100.0), 1.0)
     localisation.step(1.5)
-    assert localisation.estimate is not None and localisation.estimate.health is Health.OK
+    assert localisation.estimate is not None
+    assert localisation.estimate.health is Health.OK
     localisation.step(2.1)
     assert localisation.estimate.health is Health.LOST
 
@@ -73,7 +75,7 @@ def test_a_fix_without_listener_shifts_the_position(ring: TrackMap) -> None:
     localisation.step(1.0)
     assert localisation.estimate is not None
     assert localisation.estimate.position_m == pytest.approx(103.0)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="not valid"):
         localisation.fix(float("nan"), 0.5, 1.0)
 
 
@@ -85,4 +87,5 @@ def test_after_a_silence_a_restarted_listener_is_followed(ring: TrackMap) -> Non
     localisation.receive(output(1, 0.05, 50.5), 502.0)
     localisation.step(502.0)
     assert localisation.counters["resynchronised"] == 1
-    assert localisation.estimate is not None and localisation.estimate.epoch_s == 0.05
+    assert localisation.estimate is not None
+    assert localisation.estimate.epoch_s == 0.05

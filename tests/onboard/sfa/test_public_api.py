@@ -18,8 +18,15 @@ def test_all_is_sorted_and_every_name_resolves() -> None:
 def test_every_public_class_of_the_submodules_is_reachable() -> None:
     exported = {id(getattr(onboard.sfa, name)) for name in onboard.sfa.__all__}
     modules = {
-        "filter", "link", "listener", "localisation", "lockstep", "recording", "reorder", "status",
-    }  # fmt: skip
+        "filter",
+        "link",
+        "listener",
+        "localisation",
+        "lockstep",
+        "recording",
+        "reorder",
+        "status",
+    }
     for info in pkgutil.iter_modules(onboard.sfa.__path__):
         if info.name not in modules:
             continue

@@ -16,7 +16,8 @@ def test_releases_in_sequence_order_across_the_wrap() -> None:
         assert buffer.push(seq, seq, 0.0) is None
         released += buffer.pop_ready(0.0)
     assert released == [65534, 65535, 0, 1]
-    assert buffer.next_seq == 2 and buffer.lost == 0
+    assert buffer.next_seq == 2
+    assert buffer.lost == 0
 
 
 def test_duplicates_and_late_packets_are_refused_by_reason() -> None:

@@ -31,9 +31,12 @@ def test_imu_at_rest_on_a_gradient_and_the_sequence_counter(ring: TrackMap) -> N
     standing = TruthSample(time_s=0.0, position_m=100.0, speed_mps=0.0, acceleration_mps2=0.0)
     packets = [decode_input(d) for d in modules.start(standing) + modules.step(standing)]
     assert [p.sensor_type for p in packets] == [
-        SensorType.GROUND_TRUTH, SensorType.STROBE, SensorType.IMU, SensorType.ODOMETER,
+        SensorType.GROUND_TRUTH,
+        SensorType.STROBE,
+        SensorType.IMU,
+        SensorType.ODOMETER,
         SensorType.GPS,
-    ]  # fmt: skip
+    ]
     assert [p.seq_no for p in packets] == [0, 1, 2, 3, 4]
     acc_x, acc_y, acc_z = packets[2].doubles[:3]
     uphill = 9.81 * np.sin(np.arctan(2.0 / 1000.0))
@@ -72,7 +75,8 @@ def test_record_save_load_replay_matches_the_online_run(ring: TrackMap, tmp_path
     loaded = Recording.load(path)
     assert loaded.datagrams == result.recording.datagrams
     everything = replay(loaded, track_map=ring)
-    assert everything.position_rms_m <= 1.0 and everything.speed_rms_kmh <= 0.2
+    assert everything.position_rms_m <= 1.0
+    assert everything.speed_rms_kmh <= 0.2
     assert everything.epochs_s.size == result.listener.counters.outputs_sent
     # The offline switches: the IMU alone is much worse, a looser GPS σ changes the numbers.
     imu_only = replay(loaded, ListenerConfig(sensors=frozenset({"imu"})), ring)
@@ -95,15 +99,28 @@ def test_with_the_bogie_model_the_odometer_reads_the_wheel_so_slip_shows(ring: T
     from onboard.plant.sensors import SensorNoise, truth_from_bogie
 
     slipping = BogieTruth(
-        time_s=0.0, position_m=10.0, speed_mps=10.0, acceleration_mps2=0.5,
-        wheel_speed_front_radps=25.0, wheel_speed_rear_radps=24.0, wheel_radius_m=0.46,
-        motor_torque_front_nm=0.0, motor_torque_rear_nm=0.0, brake_torque_front_nm=0.0,
-        brake_torque_rear_nm=0.0, normal_force_front_n=0.0, normal_force_rear_n=0.0,
-        creepage_front=0.15, creepage_rear=0.1, traction_energy_j=0.0, regen_energy_j=0.0,
-    )  # fmt: skip
+        time_s=0.0,
+        position_m=10.0,
+        speed_mps=10.0,
+        acceleration_mps2=0.5,
+        wheel_speed_front_radps=25.0,
+        wheel_speed_rear_radps=24.0,
+        wheel_radius_m=0.46,
+        motor_torque_front_nm=0.0,
+        motor_torque_rear_nm=0.0,
+        brake_torque_front_nm=0.0,
+        brake_torque_rear_nm=0.0,
+        normal_force_front_n=0.0,
+        normal_force_rear_n=0.0,
+        creepage_front=0.15,
+        creepage_rear=0.1,
+        traction_energy_j=0.0,
+        regen_energy_j=0.0,
+    )
     modules = InterfaceModules(ring, rng=np.random.default_rng(0), noise=SensorNoise.noiseless())
     truth = truth_from_bogie(slipping)
     modules.start(truth)
     odometer = next(p for p in map(decode_input, modules.step(truth)) if p.sensor_type == 2)
     speed_mps, sigma_mps = odometer.doubles
-    assert speed_mps == pytest.approx(25.0 * 0.46) and sigma_mps == 0.0
+    assert speed_mps == pytest.approx(25.0 * 0.46)
+    assert sigma_mps == 0.0

@@ -101,5 +101,7 @@ def test_worked_example_over_udp_initialises_outputs_from_zero_and_is_acknowledg
     for packet in decoded:
         assert 0.0 <= packet.arc_length_km < ring_km
         assert min(packet.arc_length_km, ring_km - packet.arc_length_km) < 0.01
-    assert core.last_ack_seq is not None and core.last_ack_seq <= decoded[-1].seq_no
-    assert localisation.estimate is not None and localisation.estimate.health is not Health.LOST
+    assert core.last_ack_seq is not None
+    assert core.last_ack_seq <= decoded[-1].seq_no
+    assert localisation.estimate is not None
+    assert localisation.estimate.health is not Health.LOST

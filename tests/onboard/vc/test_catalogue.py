@@ -44,8 +44,10 @@ def test_every_transition_of_the_three_fsms_is_taken(
     coverage = transition_coverage(t for r in catalogue_results.values() for t in r.transitions)
     assert set(coverage) == set(Fsm)
     for item in coverage.values():
-        assert item.rows_missing == () and item.rows_covered == 1.0
-        assert item.pairs_missing == () and item.pairs_covered == 1.0
+        assert item.rows_missing == ()
+        assert item.rows_covered == 1.0
+        assert item.pairs_missing == ()
+        assert item.pairs_covered == 1.0
 
 
 def test_every_eb_is_full_within_1_s_of_the_hazard(
@@ -59,7 +61,8 @@ def test_every_eb_is_full_within_1_s_of_the_hazard(
     ]
     assert len(braking) == 15
     for result in braking:
-        assert result.hazard_to_full_eb_s is not None and result.hazard_to_eb_command_s is not None
+        assert result.hazard_to_full_eb_s is not None
+        assert result.hazard_to_eb_command_s is not None
         assert result.hazard_to_full_eb_s <= 1.0, result.key
         assert result.hazard_to_full_eb_s - result.hazard_to_eb_command_s == pytest.approx(0.45)
         assert (result.speed_at_intervention_kmh or 0.0) > 20.0
@@ -70,20 +73,23 @@ def test_nothing_brakes_or_decays_in_the_nominal_scenarios(
 ) -> None:
     for result in catalogue_results.values():
         if result.expected is OutcomeClass.NONE:
-            assert result.eb_command_s is None and result.decay_s is None, result.key
+            assert result.eb_command_s is None, result.key
+            assert result.decay_s is None, result.key
 
 
 def test_the_pipe_time_is_a_scenario_parameter() -> None:
     slow = replace(scenario("B"), full_eb_delay_s=0.3)
     result = run_scenario(slow)
-    assert result.hazard_to_full_eb_s is not None and result.hazard_to_eb_command_s is not None
+    assert result.hazard_to_full_eb_s is not None
+    assert result.hazard_to_eb_command_s is not None
     assert result.hazard_to_full_eb_s - result.hazard_to_eb_command_s == pytest.approx(0.3)
 
 
 def test_a_run_is_deterministic(catalogue_results: dict[str, ScenarioResult]) -> None:
     again = run_scenario(scenario("M-noisy"))
     first = catalogue_results["M-noisy"]
-    assert again.events == first.events and again.transitions == first.transitions
+    assert again.events == first.events
+    assert again.transitions == first.transitions
 
 
 def test_the_report_compares_with_the_seeds(catalogue_results: dict[str, ScenarioResult]) -> None:

@@ -43,7 +43,8 @@ def test_each_eb_condition_commands_the_eb(
 ) -> None:
     result = catalogue_results[key]
     assert _conditions(result)[0] == condition
-    assert result.eb_command_s is not None and result.evidence_s is not None
+    assert result.eb_command_s is not None
+    assert result.evidence_s is not None
     # Task C acts in the cycle Task B raises the flag: within one 2 ms period of the evidence.
     assert 0.0 <= result.eb_command_s - result.evidence_s <= 0.002 + 1e-9
 
@@ -65,7 +66,8 @@ def test_each_decay_condition(
 ) -> None:
     result = catalogue_results[key]
     assert result.decay_reasons[0] == reason
-    assert result.decay_s is not None and result.evidence_to_decay_s is not None
+    assert result.decay_s is not None
+    assert result.evidence_to_decay_s is not None
     assert result.evidence_to_decay_s <= 0.002 + 1e-9
 
 
@@ -74,8 +76,10 @@ def test_recoverable_conditions_never_decay(
     catalogue_results: dict[str, ScenarioResult], key: str
 ) -> None:
     result = catalogue_results[key]
-    assert result.decay_s is None and not result.decay_reasons
-    assert result.rearmed_s is not None and result.eb_command_s is not None
+    assert result.decay_s is None
+    assert not result.decay_reasons
+    assert result.rearmed_s is not None
+    assert result.eb_command_s is not None
     assert result.rearmed_s > result.eb_command_s
 
 
@@ -119,8 +123,10 @@ def test_rearm_waits_for_standstill_though_confirmed_while_braking() -> None:
     assert result.outcome is OutcomeClass.EB_SAFE_RECOVERY
     standstill = [t for t in result.transitions if t.fsm.value == "C.brake" and t.number == 4]
     rearms = [t for t in result.transitions if t.fsm.value == "C.brake" and t.number == 5]
-    assert len(standstill) == 2 and len(rearms) == 2
+    assert len(standstill) == 2
+    assert len(rearms) == 2
     # The confirmation given at 10 s (braking) is used only after the standstill.
     assert standstill[1].time_s > 15.0
     assert rearms[1].time_s > standstill[1].time_s
-    assert result.rearmed_s is not None and result.rearmed_s > rearms[1].time_s
+    assert result.rearmed_s is not None
+    assert result.rearmed_s > rearms[1].time_s

@@ -58,7 +58,8 @@ def test_decay_comes_first_and_decayed_states_are_final() -> None:
 def test_the_decay_row_wins_over_any_other_trigger() -> None:
     table = ALL_TABLES[Fsm.TASK_C_BRAKE]
     rule = select_rule(table, BrakeState.REARMING, set(Trigger))
-    assert rule is not None and rule.trigger is Trigger.SYSTEM_DECAY
+    assert rule is not None
+    assert rule.trigger is Trigger.SYSTEM_DECAY
 
 
 def test_a_state_machine_records_what_it_takes() -> None:

@@ -24,7 +24,8 @@ MPP = VcConfig().metres_per_pulse
 
 def test_power_up_with_the_eb_applied_then_rearm_and_release() -> None:
     valves = EmergencyBrakeValves(recharge_s=1.0)
-    assert not valves.energised and valves.brake_effort(0.0) == 1.0
+    assert not valves.energised
+    assert valves.brake_effort(0.0) == 1.0
     assert not valves.eb_released(0.0)
     valves.command(True, 0.0)
     assert not valves.eb_released(0.94)
@@ -55,7 +56,8 @@ def test_pipe_venting_time_is_configurable_and_partial_pressure_vents_sooner() -
 def test_a_pipe_fault_keeps_the_rearm_from_recharging() -> None:
     valves = EmergencyBrakeValves(faults=(PipeFault(start_s=0.0, end_s=5.0),))
     valves.command(True, 1.0)
-    assert valves.energised and valves.pressure_fraction(3.0) == 0.0
+    assert valves.energised
+    assert valves.pressure_fraction(3.0) == 0.0
     assert not valves.eb_released(3.0)
 
 
@@ -105,7 +107,8 @@ def test_board_fault_modes(mode: TachometerFaultMode) -> None:
     window = [f for t, f in frames if 0.3 <= t < 0.6]
     before = [f for t, f in frames if t < 0.3]
     if mode is TachometerFaultMode.SILENT:
-        assert window == [] and len(frames) == 9
+        assert window == []
+        assert len(frames) == 9
     elif mode is TachometerFaultMode.FROZEN:
         assert set(window) == {before[-1]}
     else:

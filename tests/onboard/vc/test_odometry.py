@@ -41,8 +41,10 @@ def _at(run: list[tuple[float, OdometryEstimate]], time_s: float) -> OdometryEst
 def test_speed_and_position_within_a_pulse() -> None:
     run = _run(8.0, 2.0)
     estimate = _at(run, 2.0)
-    assert estimate.efficient and not estimate.standstill
-    assert estimate.speed_mps is not None and estimate.position_m is not None
+    assert estimate.efficient
+    assert not estimate.standstill
+    assert estimate.speed_mps is not None
+    assert estimate.position_m is not None
     assert_allclose(estimate.speed_mps, 8.0, atol=RESOLUTION_MPS)
     assert_allclose(estimate.position_m, 16.0, atol=CONFIG.metres_per_pulse)
 
@@ -51,7 +53,9 @@ def test_efficient_and_standstill_after_three_frames_from_power_up() -> None:
     run = _run(0.0, 0.5)
     assert not _at(run, 0.238).efficient
     estimate = _at(run, 0.24)
-    assert estimate.efficient and estimate.standstill and estimate.speed_mps == 0.0
+    assert estimate.efficient
+    assert estimate.standstill
+    assert estimate.speed_mps == 0.0
 
 
 @pytest.mark.parametrize(
@@ -72,7 +76,9 @@ def test_each_board_fault_makes_the_odometry_not_efficient(
     run = _run(8.0, 2.0, TachometerFault(mode=mode, start_s=1.0, end_s=1.3))
     assert _at(run, evident_s - 0.002).efficient
     bad = _at(run, evident_s + 0.002)
-    assert not bad.efficient and bad.speed_mps is None and not bad.standstill
+    assert not bad.efficient
+    assert bad.speed_mps is None
+    assert not bad.standstill
     assert bad.not_efficient_since_s == pytest.approx(evident_s)
     assert not _at(run, recovered_s - 0.002).efficient
     assert _at(run, recovered_s).efficient

@@ -186,4 +186,5 @@ def test_the_vote_key_is_the_replica_view_of_the_outputs() -> None:
         for view, key in zip(views, keys, strict=True):
             assert key == tuple(getattr(view, name) for name in ReplicaView.__slots__)
         keys_differed |= keys[0] != keys[1]
-    assert keys_differed and pair.tripped_by is PairEventKind.DISAGREEMENT
+    assert keys_differed
+    assert pair.tripped_by is PairEventKind.DISAGREEMENT

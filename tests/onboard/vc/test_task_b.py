@@ -96,7 +96,9 @@ def test_invalid_sequence_increments_raise_eb_and_decay(section: Section, return
     sent = request(0.0, numbers={Section.ATO_VITALITY: 1, Section.EB_RELEASE_CONFIRMATION: 1})
     response = response_to(sent).with_section(section, SectionResponse(returned, False))
     status = rig.exchange(sent, response, 0.002)
-    assert status.state is TaskBState.DECAYED and status.eb_flag and status.system_decay
+    assert status.state is TaskBState.DECAYED
+    assert status.eb_flag
+    assert status.system_decay
     assert EbCondition.RESPONSE_NOT_VALID in status.live_conditions
     assert status.decay_reasons == (DecayReason.RESPONSE_NOT_VALID,)
 
@@ -122,7 +124,8 @@ def test_status_fail_raises_eb_and_decay() -> None:
     rig = _rig()
     sent = request(0.0, numbers={Section.ATO_VITALITY: 1})
     status = rig.exchange(sent, response_to(sent, status=AtoObStatus.FAIL), 0.002)
-    assert status.system_decay and status.decay_reasons == (DecayReason.ATO_OB_FAIL,)
+    assert status.system_decay
+    assert status.decay_reasons == (DecayReason.ATO_OB_FAIL,)
     assert EbCondition.ATO_OB_FAIL in status.eb_conditions
 
 
@@ -132,7 +135,8 @@ def test_the_operators_eb_request_raises_the_flag_without_decay() -> None:
     status = rig.exchange(
         sent, response_to(sent, answers={Section.EB_RELEASE_CONFIRMATION: True}), 0.002
     )
-    assert status.state is TaskBState.EB_DEMANDED and not status.system_decay
+    assert status.state is TaskBState.EB_DEMANDED
+    assert not status.system_decay
     assert status.eb_conditions == {EbCondition.OPERATOR_REQUEST}
 
 

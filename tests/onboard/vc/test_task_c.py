@@ -115,7 +115,8 @@ def test_rearm_not_applied_within_its_timeout_is_system_decay() -> None:
     assert rig.step(2.004, standstill=True, eb_rearm_confirmed_number=1) is BrakeState.DECAYED
     assert rig.valves[-1] == (False, 2.004)
     status = rig.task.status.read()
-    assert status is not None and status.decay_reasons == (DecayReason.EB_REARM_NOT_APPLIED,)
+    assert status is not None
+    assert status.decay_reasons == (DecayReason.EB_REARM_NOT_APPLIED,)
 
 
 def test_system_decay_from_b_holds_the_eb_for_good() -> None:
@@ -131,7 +132,8 @@ def test_etcs_isolation_with_re_read_verification() -> None:
     rig.step(0.0, etcs_isolation_confirmed_number=1)
     assert rig.task.etcs.state is EtcsState.INSERTED  # moving: refused
     rig.step(0.002, standstill=True, etcs_isolation_confirmed_number=1)
-    assert rig.task.etcs.state is EtcsState.ISOLATING and rig.relay == [(False, 0.002)]
+    assert rig.task.etcs.state is EtcsState.ISOLATING
+    assert rig.relay == [(False, 0.002)]
     rig.step(0.1, standstill=True, etcs_isolation_confirmed_number=1)
     assert rig.task.etcs.state is EtcsState.ISOLATING
     rig.step(0.102, standstill=True, etcs_isolated=True)
@@ -141,11 +143,13 @@ def test_etcs_isolation_with_re_read_verification() -> None:
 def test_a_relay_that_does_not_actuate_is_system_decay() -> None:
     rig = _rig(etcs_inserted=False)
     rig.step(0.0, standstill=True, etcs_isolated=True, etcs_insertion_confirmed_number=1)
-    assert rig.task.etcs.state is EtcsState.INSERTING and rig.relay == [(True, 0.0)]
+    assert rig.task.etcs.state is EtcsState.INSERTING
+    assert rig.relay == [(True, 0.0)]
     rig.step(0.1, standstill=True, etcs_isolated=True)
     assert rig.task.etcs.state is EtcsState.INSERTING
     rig.step(0.102, standstill=True, etcs_isolated=True)
     assert rig.task.etcs.state is EtcsState.FAILED
     assert rig.task.brake.state is BrakeState.DECAYED
     status = rig.task.status.read()
-    assert status is not None and status.decay_reasons == (DecayReason.ETCS_INSERTION_NOT_ACTUATED,)
+    assert status is not None
+    assert status.decay_reasons == (DecayReason.ETCS_INSERTION_NOT_ACTUATED,)

@@ -103,7 +103,8 @@ def test_a_standing_flag_keeps_its_number_until_settled() -> None:
         for k in range(1, len(vigilance))
         if vigilance[k].request_flag and not vigilance[k - 1].request_flag
     ]
-    assert vigilance[0].request_flag and raised == [125]  # at 0 s and 5 s
+    assert vigilance[0].request_flag
+    assert raised == [125]
     up = [v.sequence_number for v in vigilance if v.request_flag]
     assert set(up) == {1, 2}
     # Confirmed by the operator 0.3 s after the request, seen by Task A at its next release.
@@ -113,17 +114,22 @@ def test_a_standing_flag_keeps_its_number_until_settled() -> None:
 def test_power_up_asks_the_rearm_at_standstill_then_releases_the_eb() -> None:
     executive, vc, _ = _bench()
     executive.run_until(240 * MS)
-    assert vc.outputs.standstill and vc.outputs.task_a_state is TaskAState.REARM_PENDING
+    assert vc.outputs.standstill
+    assert vc.outputs.task_a_state is TaskAState.REARM_PENDING
     request = vc.task_a.last_request
-    assert request is not None and request.section(Section.EB_REARM_CONFIRMATION).request_flag
+    assert request is not None
+    assert request.section(Section.EB_REARM_CONFIRMATION).request_flag
     assert Notification.REARM_REQUESTED in request.notifications
     assert request.section(Section.ETCS_ISOLATION_CONFIRMATION).request_flag
     assert vc.outputs.eb_commanded
     executive.run_until(round(1.6 * NS_PER_S))
     outputs = vc.outputs
-    assert not outputs.eb_commanded and outputs.brake_state is BrakeState.RELEASED
-    assert outputs.task_a_state is TaskAState.SUPERVISING and not outputs.system_decay
-    assert not outputs.etcs_isolated and outputs.speed_mps == 0.0
+    assert not outputs.eb_commanded
+    assert outputs.brake_state is BrakeState.RELEASED
+    assert outputs.task_a_state is TaskAState.SUPERVISING
+    assert not outputs.system_decay
+    assert not outputs.etcs_isolated
+    assert outputs.speed_mps == 0.0
 
 
 def test_the_last_balise_header_is_forwarded_to_the_ato_ob() -> None:
@@ -131,7 +137,8 @@ def test_the_last_balise_header_is_forwarded_to_the_ato_ob() -> None:
     executive.run_until(100 * MS)
     vc.hardware.balise_telegrams.put(Delivery(TelegramHeader(nid_bg=7, q_link=1), 0.1))
     executive.run_until(200 * MS)
-    assert double.last_request is not None and double.last_request.last_balise_header is not None
+    assert double.last_request is not None
+    assert double.last_request.last_balise_header is not None
     assert double.last_request.last_balise_header.nid_bg == 7
     assert double.balise_headers_seen == [7]
 
@@ -139,7 +146,8 @@ def test_the_last_balise_header_is_forwarded_to_the_ato_ob() -> None:
 def test_without_the_operator_the_eb_stays_applied() -> None:
     executive, vc, _ = _bench(auto_confirm_rearm=False)
     executive.run_until(3 * NS_PER_S)
-    assert vc.outputs.eb_commanded and vc.outputs.brake_state is BrakeState.STANDSTILL
+    assert vc.outputs.eb_commanded
+    assert vc.outputs.brake_state is BrakeState.STANDSTILL
 
 
 def test_config_is_checked() -> None:
@@ -147,7 +155,8 @@ def test_config_is_checked() -> None:
         VcConfig(task_b_period_s=0.0)
     with pytest.raises(VcInputError):
         VcConfig(exchange_window_s=0.03)
-    assert issubclass(VcInputError, ValueError) and issubclass(VcInputError, VcError)
+    assert issubclass(VcInputError, ValueError)
+    assert issubclass(VcInputError, VcError)
 
 
 def test_all_is_complete_and_reexports_the_modules() -> None:

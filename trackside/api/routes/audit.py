@@ -29,18 +29,24 @@ class AuditPublic(BaseModel):
     @classmethod
     def from_entry(cls, entry: AuditEntry) -> AuditPublic:
         return cls(
-            id=entry.id, at=entry.at, user=entry.username, vehicle_id=entry.vehicle_id,
-            action=entry.action, request=json.loads(entry.request),
-            result=audit.AuditResult(entry.result), detail=entry.detail,
-        )  # fmt: skip
+            id=entry.id,
+            at=entry.at,
+            user=entry.username,
+            vehicle_id=entry.vehicle_id,
+            action=entry.action,
+            request=json.loads(entry.request),
+            result=audit.AuditResult(entry.result),
+            detail=entry.detail,
+        )
 
 
 @router.get("")
 def read_audit(
-    db: SessionDep, _admin: AdminUser,
+    db: SessionDep,
+    _admin: AdminUser,
     vehicle_id: Annotated[str | None, Query(max_length=32)] = None,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 200,
-) -> list[AuditPublic]:  # fmt: skip
+) -> list[AuditPublic]:
     """The newest audit entries (of one vehicle if given), oldest first."""
     entries = audit.list_entries(db, vehicle_id=vehicle_id, limit=limit)
     return [AuditPublic.from_entry(entry) for entry in entries]

@@ -35,11 +35,16 @@ class JourneyCheckPublic(BaseModel):
     def from_check(cls, check: JourneyCheck, line_version: str) -> JourneyCheckPublic:
         legs = [
             LegPublic(
-                index=leg.index, from_id=leg.from_id, to_id=leg.to_id, distance_m=leg.distance_m,
-                scheduled_s=leg.scheduled_s, minimum_s=leg.minimum_s, shortfall_s=leg.shortfall_s,
+                index=leg.index,
+                from_id=leg.from_id,
+                to_id=leg.to_id,
+                distance_m=leg.distance_m,
+                scheduled_s=leg.scheduled_s,
+                minimum_s=leg.minimum_s,
+                shortfall_s=leg.shortfall_s,
             )
             for leg in check.legs
-        ]  # fmt: skip
+        ]
         return cls(
             valid=check.valid, problems=list(check.problems), legs=legs, line_version=line_version
         )
@@ -54,9 +59,11 @@ class JourneyPublic(BaseModel):
     @classmethod
     def from_stored(cls, stored: service.StoredJourney) -> JourneyPublic:
         return cls(
-            journey=stored.journey, version=stored.version, line_version=stored.line_version,
+            journey=stored.journey,
+            version=stored.version,
+            line_version=stored.line_version,
             created_by=stored.created_by,
-        )  # fmt: skip
+        )
 
 
 def _not_found(exc: NotFoundError) -> HTTPException:

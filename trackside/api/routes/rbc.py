@@ -107,9 +107,12 @@ def _audited(user: User, message: m.MovementAuthorityMessage) -> None:
     authority = message.authority
     _audit.info(
         "user=%s action=rbc.%s vehicle=%s ma_id=%d eoa_m=%s",
-        user.username, message.change.value, message.vehicle_id, message.ma_id,
+        user.username,
+        message.change.value,
+        message.vehicle_id,
+        message.ma_id,
         "none" if authority is None else f"{authority.end_of_authority_m:g}",
-    )  # fmt: skip
+    )
 
 
 @router.get("/{vehicle_id}/ma", responses=NOT_FOUND)
@@ -183,14 +186,22 @@ class SpeedRestrictionIssue(BaseModel):
 
 
 def _restriction(
-    vehicle_id: str, restriction_id: str, line_id: str, start_m: float, end_m: float,
+    vehicle_id: str,
+    restriction_id: str,
+    line_id: str,
+    start_m: float,
+    end_m: float,
     speed_mps: float | None,
-) -> m.SpeedRestrictionMessage:  # fmt: skip
+) -> m.SpeedRestrictionMessage:
     try:
         return m.SpeedRestrictionMessage(
-            vehicle_id=vehicle_id, restriction_id=restriction_id, line_id=line_id,
-            start_m=start_m, end_m=end_m, speed_mps=speed_mps,
-        )  # fmt: skip
+            vehicle_id=vehicle_id,
+            restriction_id=restriction_id,
+            line_id=line_id,
+            start_m=start_m,
+            end_m=end_m,
+            speed_mps=speed_mps,
+        )
     except ValueError as exc:
         detail = {"message": "not a speed restriction", "problems": [str(exc)]}
         raise HTTPException(status_code=422, detail=detail) from exc
@@ -201,24 +212,41 @@ def issue_speed_restriction(
     vehicle_id: VehiclePath, body: SpeedRestrictionIssue, rbc: RbcDep, user: AdminUser
 ) -> m.SpeedRestrictionMessage:
     """Send a temporary speed restriction to the vehicle (admin only)."""
-    message = _restriction(vehicle_id, body.id, body.line_id, body.start_m, body.end_m,
-                           body.speed_kmh / 3.6)  # fmt: skip
+    message = _restriction(
+        vehicle_id, body.id, body.line_id, body.start_m, body.end_m, body.speed_kmh / 3.6
+    )
     with _rbc_errors():
         rbc.restrict_speed(vehicle_id, message)
-    _audit.info("user=%s action=rbc.tsr vehicle=%s tsr=%s %g..%g m %g km/h", user.username,
-                vehicle_id, body.id, body.start_m, body.end_m, body.speed_kmh)  # fmt: skip
+    _audit.info(
+        "user=%s action=rbc.tsr vehicle=%s tsr=%s %g..%g m %g km/h",
+        user.username,
+        vehicle_id,
+        body.id,
+        body.start_m,
+        body.end_m,
+        body.speed_kmh,
+    )
     return message
 
 
 @router.delete("/{vehicle_id}/tsr/{restriction_id}", responses=REFUSED)
 def revoke_speed_restriction(
-    vehicle_id: VehiclePath, restriction_id: Annotated[str, Path(max_length=64)],
-    line_id: str, start_m: float, end_m: float, rbc: RbcDep, user: AdminUser,
-) -> m.SpeedRestrictionMessage:  # fmt: skip
+    vehicle_id: VehiclePath,
+    restriction_id: Annotated[str, Path(max_length=64)],
+    line_id: str,
+    start_m: float,
+    end_m: float,
+    rbc: RbcDep,
+    user: AdminUser,
+) -> m.SpeedRestrictionMessage:
     """Revoke a temporary speed restriction on the vehicle (admin only)."""
     message = _restriction(vehicle_id, restriction_id, line_id, start_m, end_m, None)
     with _rbc_errors():
         rbc.restrict_speed(vehicle_id, message)
-    _audit.info("user=%s action=rbc.tsr_revoked vehicle=%s tsr=%s", user.username, vehicle_id,
-                restriction_id)  # fmt: skip
+    _audit.info(
+        "user=%s action=rbc.tsr_revoked vehicle=%s tsr=%s",
+        user.username,
+        vehicle_id,
+        restriction_id,
+    )
     return message

@@ -69,25 +69,29 @@ def list_vehicles(
             snapshot,
             holder=held[snapshot.id].username if snapshot.id in held else None,
             simulated_operator=snapshot.id in simulated,
-        )  # fmt: skip
+        )
         for snapshot in bridge.fleet()
     ]
 
 
 @router.get("/{vehicle_id}", responses={404: {"description": "Never seen"}})
 def read_vehicle(
-    vehicle_id: VehiclePath, bridge: BridgeDep, db: SessionDep, simulated: SimulatedDep,
+    vehicle_id: VehiclePath,
+    bridge: BridgeDep,
+    db: SessionDep,
+    simulated: SimulatedDep,
     _user: ObserverUser,
-) -> VehiclePublic:  # fmt: skip
+) -> VehiclePublic:
     """One vehicle, alive or not, with its holder and its latest status when alive."""
     snapshot = bridge.snapshot(vehicle_id)
     if snapshot is None:
         raise HTTPException(status_code=status.HTTP_404_NOT_FOUND, detail="no such vehicle")
     hold = holds.holder(db, vehicle_id)
     return VehiclePublic.from_snapshot(
-        snapshot, holder=None if hold is None else hold.username,
+        snapshot,
+        holder=None if hold is None else hold.username,
         simulated_operator=vehicle_id in simulated,
-    )  # fmt: skip
+    )
 
 
 # -- holding -----------------------------------------------------------------------------------
@@ -110,10 +114,15 @@ def select_vehicle(
         hold = holds.select_vehicle(db, vehicle_id, user)
     except ConflictError as exc:
         raise HTTPException(status_code=status.HTTP_409_CONFLICT, detail=str(exc)) from exc
-    db.add(audit.audit_entry(
-        user=user.username, vehicle_id=vehicle_id, action="select", request={},
-        result=audit.AuditResult.ACCEPTED,
-    ))  # fmt: skip
+    db.add(
+        audit.audit_entry(
+            user=user.username,
+            vehicle_id=vehicle_id,
+            action="select",
+            request={},
+            result=audit.AuditResult.ACCEPTED,
+        )
+    )
     return HoldPublic(vehicle_id=vehicle_id, holder=hold.username, since=hold.since)
 
 
@@ -124,10 +133,15 @@ def release_vehicle(vehicle_id: VehiclePath, db: SessionDep, user: DriverUser) -
         holds.release(db, vehicle_id, user)
     except ConflictError as exc:
         raise HTTPException(status_code=status.HTTP_409_CONFLICT, detail=str(exc)) from exc
-    db.add(audit.audit_entry(
-        user=user.username, vehicle_id=vehicle_id, action="release", request={},
-        result=audit.AuditResult.ACCEPTED,
-    ))  # fmt: skip
+    db.add(
+        audit.audit_entry(
+            user=user.username,
+            vehicle_id=vehicle_id,
+            action="release",
+            request={},
+            result=audit.AuditResult.ACCEPTED,
+        )
+    )
     return HoldPublic(vehicle_id=vehicle_id, holder=None)
 
 
@@ -145,9 +159,11 @@ class CommandAnswer(BaseModel):
     @classmethod
     def from_ack(cls, ack: m.CommandAck) -> CommandAnswer:
         return cls(
-            vehicle_id=ack.vehicle_id, command_id=ack.command_id, accepted=ack.accepted,
+            vehicle_id=ack.vehicle_id,
+            command_id=ack.command_id,
+            accepted=ack.accepted,
             reason=ack.reason,
-        )  # fmt: skip
+        )
 
 
 class EmptyRequest(BaseModel):
@@ -187,18 +203,22 @@ def _send(
 
 @router.post("/{vehicle_id}/engage", responses=COMMAND_ERRORS)
 def engage(
-    vehicle_id: VehiclePath, commands: CommandsDep, user: DriverUser,
+    vehicle_id: VehiclePath,
+    commands: CommandsDep,
+    user: DriverUser,
     _body: EmptyRequest | None = None,
-) -> CommandAnswer:  # fmt: skip
+) -> CommandAnswer:
     """Engage automatic driving (AD)."""
     return _send(commands, user, vehicle_id, m.EngageCommand())
 
 
 @router.post("/{vehicle_id}/disengage", responses=COMMAND_ERRORS)
 def disengage(
-    vehicle_id: VehiclePath, commands: CommandsDep, user: DriverUser,
+    vehicle_id: VehiclePath,
+    commands: CommandsDep,
+    user: DriverUser,
     _body: EmptyRequest | None = None,
-) -> CommandAnswer:  # fmt: skip
+) -> CommandAnswer:
     """Disengage automatic driving."""
     return _send(commands, user, vehicle_id, m.DisengageCommand())
 
@@ -214,17 +234,22 @@ def rd_target_speed(
 
 @router.post("/{vehicle_id}/emergency-brake", responses=COMMAND_ERRORS)
 def emergency_brake(
-    vehicle_id: VehiclePath, commands: CommandsDep, user: DriverUser,
+    vehicle_id: VehiclePath,
+    commands: CommandsDep,
+    user: DriverUser,
     _body: EmptyRequest | None = None,
-) -> CommandAnswer:  # fmt: skip
+) -> CommandAnswer:
     """Ask for the emergency brake."""
     return _send(commands, user, vehicle_id, m.EmergencyBrakeCommand())
 
 
 def _confirm(
-    kind: m.OperatorRequestKind, vehicle_id: str, body: ConfirmRequest, commands: CommandsDep,
+    kind: m.OperatorRequestKind,
+    vehicle_id: str,
+    body: ConfirmRequest,
+    commands: CommandsDep,
     user: DriverUser,
-) -> CommandAnswer:  # fmt: skip
+) -> CommandAnswer:
     command = m.OperatorConfirmCommand(request=kind, number=body.number)
     return _send(commands, user, vehicle_id, command)
 
@@ -300,9 +325,11 @@ class JourneyProfileAnswer(BaseModel):
 
 @router.post("/{vehicle_id}/journey-profile", responses=COMMAND_ERRORS)
 def send_journey_profile(
-    vehicle_id: VehiclePath, body: JourneyProfileRequest, commands: CommandsDep,
+    vehicle_id: VehiclePath,
+    body: JourneyProfileRequest,
+    commands: CommandsDep,
     user: DriverUser,
-) -> JourneyProfileAnswer:  # fmt: skip
+) -> JourneyProfileAnswer:
     """Send a stored journey to a vehicle as its journey profile, and answer with the vehicle's
     acknowledgement or rejection; 504 when the vehicle does not answer in time, 409 when the
     caller does not hold it or it has no open session, 404 for an unknown journey."""
@@ -329,9 +356,13 @@ class EventPublic(BaseModel):
     @classmethod
     def from_row(cls, row: VehicleEvent) -> EventPublic:
         return cls(
-            sim_time_s=row.sim_time_s, received_at=row.received_at,
-            severity=m.EventSeverity(row.severity), code=row.code, text=row.text, seq=row.seq,
-        )  # fmt: skip
+            sim_time_s=row.sim_time_s,
+            received_at=row.received_at,
+            severity=m.EventSeverity(row.severity),
+            code=row.code,
+            text=row.text,
+            seq=row.seq,
+        )
 
 
 class TelemetryPublic(BaseModel):
@@ -358,19 +389,23 @@ class TelemetryPublic(BaseModel):
 
 @router.get("/{vehicle_id}/events")
 def read_events(
-    vehicle_id: VehiclePath, db: SessionDep, _user: ObserverUser,
+    vehicle_id: VehiclePath,
+    db: SessionDep,
+    _user: ObserverUser,
     limit: Annotated[int, Query(ge=1, le=10_000)] = 200,
-) -> list[EventPublic]:  # fmt: skip
+) -> list[EventPublic]:
     """The vehicle's newest events, newest last."""
     return [EventPublic.from_row(row) for row in history.events(db, vehicle_id, limit=limit)]
 
 
 @router.get("/{vehicle_id}/telemetry")
 def read_telemetry(
-    vehicle_id: VehiclePath, db: SessionDep, _user: ObserverUser,
+    vehicle_id: VehiclePath,
+    db: SessionDep,
+    _user: ObserverUser,
     since_s: Annotated[float | None, Query(ge=0.0, le=1e9, allow_inf_nan=False)] = None,
     limit: Annotated[int, Query(ge=1, le=100_000)] = 3600,
-) -> list[TelemetryPublic]:  # fmt: skip
+) -> list[TelemetryPublic]:
     """The vehicle's 1 Hz status history, from simulated time ``since_s`` on, oldest first."""
     rows = history.telemetry(db, vehicle_id, since_s=since_s, limit=limit)
     return [TelemetryPublic.from_row(row) for row in rows]

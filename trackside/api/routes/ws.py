@@ -76,11 +76,12 @@ async def fleet_stream(websocket: WebSocket) -> None:
             held = await asyncio.to_thread(_holders, factory)
             vehicles = [
                 VehiclePublic.from_snapshot(
-                    snapshot, holder=held.get(snapshot.id),
+                    snapshot,
+                    holder=held.get(snapshot.id),
                     simulated_operator=snapshot.id in simulated,
                 ).model_dump(mode="json")
                 for snapshot in bridge.fleet()
-            ]  # fmt: skip
+            ]
             await websocket.send_json({"type": "fleet", "vehicles": vehicles})
             await asyncio.sleep(period_s)
     except WebSocketDisconnect:
@@ -125,10 +126,14 @@ async def vehicle_stream(websocket: WebSocket, vehicle_id: str) -> None:
             for event in events:
                 await websocket.send_json({"type": "event", "event": event})
             if status is not None:
-                await websocket.send_json({
-                    "type": "status", "status": status.model_dump(mode="json"),
-                    "holder": holder, "simulated_operator": simulated,
-                })  # fmt: skip
+                await websocket.send_json(
+                    {
+                        "type": "status",
+                        "status": status.model_dump(mode="json"),
+                        "holder": holder,
+                        "simulated_operator": simulated,
+                    }
+                )
     except WebSocketDisconnect:
         pass
     finally:
