@@ -1,35 +1,54 @@
-"""Domain errors raised by the trackside services; only the routes turn them into HTTP.
+"""Domain errors raised by the trackside services; only the API turns them into HTTP answers.
+
+One tree, one place. The services raise these and know nothing of HTTP; the status code and
+body of each (the table below) are given by the exception handlers that ``create_app``
+registers (:mod:`trackside.api.exception_handlers`), never by the routes one by one.
 
 ::
 
-    TracksideError (Exception)
-    ├── AuthenticationError      bad credentials or token
-    ├── PermissionDeniedError    role too low for the action
-    ├── NotFoundError (LookupError)
-    │   └── NoMovementAuthorityError       the RBC holds no MA for the vehicle
-    ├── ConflictError            the resource exists or is held by someone else
-    ├── InvalidRequestError (ValueError)   values the service cannot act on (a bad range)
-    │   └── MovementAuthorityRefusedError  the RBC cannot issue or change an MA so
-    │       └── EndOfAuthorityBehindVehicleError   the EoA at or behind the vehicle's position
-    ├── RbcScenarioError (ValueError)      an RBC scenario script that does not load or validate
-    ├── VehicleTimeoutError (TimeoutError) the vehicle did not answer a command in time
-    └── VehicleLinkError                   a command could not be sent, or its answer was bad
+    TracksideError (Exception)                                                      HTTP
+    ├── AuthenticationError           bad username or password                      401
+    │   └── InvalidTokenError         bearer token unknown, revoked, expired, or its
+    │                                 user deleted (the answer does not say which)  401
+    ├── PermissionDeniedError         role too low for the action                   403
+    ├── NotFoundError (LookupError)   no such resource                              404
+    │   └── NoMovementAuthorityError  the RBC holds no MA for the vehicle           404
+    ├── ConflictError                 the resource exists or is held by another     409
+    ├── InvalidRequestError (ValueError)   values the service cannot act on; each
+    │   │                                  one in ``problems``                      422
+    │   ├── InvalidJourneyError            a journey not valid on its line          422
+    │   └── MovementAuthorityRefusedError  the RBC cannot issue or change an MA, or
+    │       │                              send a TSR, as asked                     422
+    │       └── EndOfAuthorityBehindVehicleError   the EoA at or behind the vehicle 409
+    ├── RbcScenarioError (ValueError)      an RBC scenario script that does not load 422
+    ├── RbcPublicationError                the RBC could not publish an MA or a TSR 503
+    ├── VehicleTimeoutError (TimeoutError) the vehicle did not answer in time       504
+    └── VehicleLinkError                   a command not sent, or its answer bad    502
 
-The services also let trackdb's errors through (``trackdb.LineValidationError``,
-``trackdb.LineNotFoundError``, ``trackdb.LineConflictError``); the routes map them too.
+The services also let trackdb's errors through (``trackdb.LineNotFoundError`` 404,
+``trackdb.LineValidationError`` 422 with its problems, ``trackdb.LineConflictError`` 409); the
+same handlers answer them.
 """
 
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from trackdb.journey import JourneyCheck
 
 __all__ = [
     "AuthenticationError",
     "ConflictError",
     "EndOfAuthorityBehindVehicleError",
+    "InvalidJourneyError",
     "InvalidRequestError",
+    "InvalidTokenError",
     "MovementAuthorityRefusedError",
     "NoMovementAuthorityError",
     "NotFoundError",
     "PermissionDeniedError",
+    "RbcPublicationError",
     "RbcScenarioError",
     "TracksideError",
     "VehicleLinkError",
@@ -45,6 +64,14 @@ class AuthenticationError(TracksideError):
     """Credentials or token not valid."""
 
 
+class InvalidTokenError(AuthenticationError):
+    """A bearer token that is unknown, revoked, expired or of a deleted user.
+
+    The message says which, for the service's own use; a client is told only that it is not
+    authenticated, so that a token found or stolen reveals nothing of its state.
+    """
+
+
 class PermissionDeniedError(TracksideError):
     """The user's role does not allow the action."""
 
@@ -58,7 +85,24 @@ class ConflictError(TracksideError):
 
 
 class InvalidRequestError(TracksideError, ValueError):
-    """The request's values are well-formed but the service cannot act on them."""
+    """The request's values are well-formed but the service cannot act on them.
+
+    ``problems`` lists what is wrong, each with its location where there is one; the message
+    alone when not given.
+    """
+
+    def __init__(self, message: str, *, problems: list[str] | None = None) -> None:
+        super().__init__(message)
+        self.problems = [message] if problems is None else problems
+
+
+class InvalidJourneyError(InvalidRequestError):
+    """A journey that fails validation against the current version of its line."""
+
+    def __init__(self, check: JourneyCheck, line_version: str) -> None:
+        super().__init__("; ".join(check.problems), problems=list(check.problems))
+        self.check = check
+        self.line_version = line_version
 
 
 class NoMovementAuthorityError(NotFoundError):
@@ -84,6 +128,10 @@ class RbcScenarioError(TracksideError, ValueError):
     def __init__(self, message: str, problems: list[str] | None = None) -> None:
         super().__init__(message)
         self.problems = problems or [message]
+
+
+class RbcPublicationError(TracksideError):
+    """The RBC could not publish an MA or a TSR on Zenoh; nothing changed."""
 
 
 class VehicleTimeoutError(TracksideError, TimeoutError):

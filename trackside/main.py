@@ -21,6 +21,7 @@ from protocol import open_session
 from protocol.messages import StatusReport
 from trackdb import LineNotFoundError
 from trackdb.storage import current_version, line_versions
+from trackside.api.exception_handlers import add_exception_handlers
 from trackside.api.routes import audit as audit_routes
 from trackside.api.routes import auth, journeys, lines, rbc, vehicles, ws
 from trackside.api.routes import users as users_routes
@@ -211,6 +212,7 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
         version="0.1.0",
         lifespan=lifespan,
     )
+    add_exception_handlers(app)
     api = APIRouter(prefix="/api/v1")
     api.include_router(auth.router)
     api.include_router(users_routes.router)

@@ -11,8 +11,9 @@ lockstep test needs.
 
 Nothing half-done: a change is checked, then published, then stored; a refusal
 (:class:`~trackside.errors.MovementAuthorityRefusedError`) or a failed publication
-(:class:`protocol.TransportError`) leaves the MA and the counter as they were. Changes are
-serialised, so the wire carries them in ``ma_id`` order.
+(:class:`~trackside.errors.RbcPublicationError`, from Zenoh's :class:`protocol.TransportError`)
+leaves the MA and the counter as they were. Changes are serialised, so the wire carries them in
+``ma_id`` order.
 
 Positions. ``positions`` gives the vehicle's last status report (the bridge's, in the service).
 An EoA at or behind the reported front end (plus ``margin_m``) is refused with
@@ -30,13 +31,14 @@ from __future__ import annotations
 import logging
 import math
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Self
 
 import zenoh
 from pydantic import Field
 
-from protocol import TypedPublisher, TypedQueryable, TypedSubscriber
+from protocol import TransportError, TypedPublisher, TypedQueryable, TypedSubscriber
 from protocol import messages as m
 from protocol.registry import (
     MOVEMENT_AUTHORITY,
@@ -48,6 +50,7 @@ from trackside.errors import (
     EndOfAuthorityBehindVehicleError,
     MovementAuthorityRefusedError,
     NoMovementAuthorityError,
+    RbcPublicationError,
 )
 from trackside.rbc_rules import (
     LineInfo,
@@ -290,7 +293,7 @@ class RbcEmulator:
         ------
         MovementAuthorityRefusedError
             If the trackside does not hold the line, or the range is not on it.
-        TransportError
+        RbcPublicationError
             If it could not be published.
         """
         if message.vehicle_id != vehicle_id:
@@ -307,7 +310,7 @@ class RbcEmulator:
             )
         if self._session is None:
             return
-        with self._change_lock:
+        with self._change_lock, _publication():
             publisher = self._tsr_publishers.get(vehicle_id)
             if publisher is None:
                 publisher = TypedPublisher(self._session, SPEED_RESTRICTION, vehicle=vehicle_id)
@@ -432,11 +435,12 @@ class RbcEmulator:
         if self._session is None:
             return
         vehicle_id = message.vehicle_id
-        publisher = self._publishers.get(vehicle_id)
-        if publisher is None:
-            publisher = TypedPublisher(self._session, MOVEMENT_AUTHORITY, vehicle=vehicle_id)
-            self._publishers[vehicle_id] = publisher
-        publisher.put(message)
+        with _publication():
+            publisher = self._publishers.get(vehicle_id)
+            if publisher is None:
+                publisher = TypedPublisher(self._session, MOVEMENT_AUTHORITY, vehicle=vehicle_id)
+                self._publishers[vehicle_id] = publisher
+            publisher.put(message)
 
     def _answer_current(
         self, chunks: dict[str, str], request: m.MovementAuthorityRequest
@@ -466,3 +470,12 @@ def _authority(message: m.MovementAuthorityMessage) -> m.MovementAuthorityExtent
     if message.authority is None:  # pragma: no cover - revoked MAs are not stored
         raise NoMovementAuthorityError(f"the MA of {message.vehicle_id} is revoked")
     return message.authority
+
+
+@contextmanager
+def _publication() -> Iterator[None]:
+    """Zenoh's failure to publish, as the RBC's own error (nothing was changed)."""
+    try:
+        yield
+    except TransportError as exc:
+        raise RbcPublicationError(f"the MA could not be published, nothing changed: {exc}") from exc

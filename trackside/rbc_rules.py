@@ -3,7 +3,8 @@
 Pure functions used by :class:`trackside.rbc.RbcEmulator`: where an MA may lie on a line
 (:func:`check_on_line`), where a reported position lies relative to an MA on a ring
 (:func:`unwrapped`), how a shortening cuts the sections (:func:`cut_sections`), and pydantic's
-validation errors turned into a refusal that lists them (:func:`built`).
+validation errors turned into a refusal that lists them (:func:`built`,
+:func:`speed_restriction`).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ __all__ = [
     "cut_sections",
     "extent_from",
     "rebuilt",
+    "speed_restriction",
     "unwrapped",
 ]
 
@@ -66,6 +68,30 @@ def built(build: Callable[[], T]) -> T:
             str(error["msg"]).removeprefix("Value error, ") for error in exc.errors()
         )
         raise MovementAuthorityRefusedError(problems) from exc
+
+
+def speed_restriction(
+    vehicle_id: str,
+    *,
+    restriction_id: str,
+    line_id: str,
+    start_m: float,
+    end_m: float,
+    speed_mps: float | None,
+) -> m.SpeedRestrictionMessage:
+    """A TSR for the vehicle (its revocation when ``speed_mps`` is None) [m, m/s]; a refusal
+    when the values do not make one."""
+    try:
+        return m.SpeedRestrictionMessage(
+            vehicle_id=vehicle_id,
+            restriction_id=restriction_id,
+            line_id=line_id,
+            start_m=start_m,
+            end_m=end_m,
+            speed_mps=speed_mps,
+        )
+    except ValidationError as exc:
+        raise MovementAuthorityRefusedError("not a speed restriction", problems=[str(exc)]) from exc
 
 
 def rebuilt(model: type[EndModel], source: m.MovementAuthorityEnd) -> EndModel:

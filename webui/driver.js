@@ -9,6 +9,7 @@ const REDRAW_MS = 500;
 const POLL_MS = 500;
 const EVENT_POLL_MS = 1000;
 const EVENT_POLL_LIMIT = 50;
+// The kind of each VC request in the path of its one confirmation route (/confirmations/{kind}).
 const confirmRoutes = {
   vigilance: "vigilance-ack",
   eb_rearm: "eb-rearm",
@@ -72,8 +73,7 @@ export class DriverView {
     $("#hold-off").addEventListener("click", () => this.command("train-hold", { hold: false }));
     $("#emergency-brake").addEventListener("click", () => this.command("emergency-brake", {}));
     $("#vigilance-ack").addEventListener("click", (event) => {
-      const number = Number(event.currentTarget.dataset.number);
-      this.command("vigilance-ack", { number }, "#request-answer");
+      this.confirm("vigilance", Number(event.currentTarget.dataset.number));
     });
     $("#journey-select").addEventListener("change", () => this.fillSkipStops());
     $("#journeys-reload").addEventListener("click", () => this.loadJourneys());
@@ -269,7 +269,7 @@ export class DriverView {
       const button = element("button", {
         dataset: { confirm: request.kind, number: String(request.number) },
         text: "Confirm",
-        onclick: () => this.command(confirmRoutes[request.kind], { number: request.number }, "#request-answer"),
+        onclick: () => this.confirm(request.kind, request.number),
       });
       list.append(element("li", { dataset: { request: request.kind } },
         element("span", { text: `${requestLabels[request.kind] || request.kind} #${request.number}` }),
@@ -326,9 +326,15 @@ export class DriverView {
   }
 
   /** Send a command; its answer shows in ``slot`` (the VC confirmations have their own). */
-  async command(action, body, slot = "#command-answer") {
+  async command(action, body, slot = "#command-answer", route = action) {
     this.pending(action, slot);
-    this.answer(action, await api(this.path(action), { method: "POST", body }), slot);
+    this.answer(action, await api(this.path(route), { method: "POST", body }), slot);
+  }
+
+  /** Confirm the VC request of that kind and number; the answer is labelled with the kind. */
+  async confirm(kind, number) {
+    const confirmation = confirmRoutes[kind];
+    await this.command(confirmation, { number }, "#request-answer", `confirmations/${confirmation}`);
   }
 
   async hold(action) {

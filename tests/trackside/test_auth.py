@@ -29,12 +29,17 @@ def test_token_for_the_bootstrapped_admin(client: TestClient) -> None:
 def test_wrong_credentials_are_401(client: TestClient, username: str, password: str) -> None:
     response = client.post("/api/v1/auth/token", data={"username": username, "password": password})
     assert response.status_code == 401
+    assert response.json() == {"detail": "wrong username or password"}
+    assert response.headers["WWW-Authenticate"] == "Bearer"
 
 
 @pytest.mark.parametrize("path", ["/api/v1/vehicles", "/api/v1/vehicles/URV1", "/api/v1/users/me"])
 def test_routes_need_a_token(client: TestClient, path: str) -> None:
     assert client.get(path).status_code == 401
-    assert client.get(path, headers={"Authorization": "Bearer not-a-token"}).status_code == 401
+    unknown = client.get(path, headers={"Authorization": "Bearer not-a-token"})
+    assert unknown.status_code == 401
+    assert unknown.json() == {"detail": "not authenticated"}  # not why
+    assert unknown.headers["WWW-Authenticate"] == "Bearer"
 
 
 def test_role_too_low_is_403(client: TestClient, admin_headers: dict[str, str]) -> None:
@@ -56,6 +61,7 @@ def test_role_too_low_is_403(client: TestClient, admin_headers: dict[str, str]) 
         json={"username": "eve", "password": "password-x", "role": "admin"},
     )
     assert forbidden.status_code == 403
+    assert forbidden.json() == {"detail": "admin role needed, olga is observer"}
 
 
 def test_duplicate_user_is_409_and_bad_body_422(
@@ -63,7 +69,9 @@ def test_duplicate_user_is_409_and_bad_body_422(
 ) -> None:
     body = {"username": "dan", "password": "driver-pw", "role": "driver"}
     assert client.post("/api/v1/users", headers=admin_headers, json=body).status_code == 201
-    assert client.post("/api/v1/users", headers=admin_headers, json=body).status_code == 409
+    duplicate = client.post("/api/v1/users", headers=admin_headers, json=body)
+    assert duplicate.status_code == 409
+    assert duplicate.json() == {"detail": "user 'dan' exists"}
     bad = body | {"role": "emperor"}
     assert client.post("/api/v1/users", headers=admin_headers, json=bad).status_code == 422
 
@@ -91,7 +99,9 @@ def test_no_admin_without_settings(make_client: MakeClient) -> None:
 def test_expired_token_is_401(make_client: MakeClient) -> None:
     client = make_client(token_ttl_s=1e-6)
     headers = login(client, *ADMIN)
-    assert client.get("/api/v1/users/me", headers=headers).status_code == 401
+    expired = client.get("/api/v1/users/me", headers=headers)
+    assert expired.status_code == 401
+    assert expired.json() == {"detail": "not authenticated"}
 
 
 def test_passwords_and_tokens_are_not_stored_in_clear(

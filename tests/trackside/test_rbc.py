@@ -12,6 +12,7 @@ from trackside.errors import (
     EndOfAuthorityBehindVehicleError,
     MovementAuthorityRefusedError,
     NoMovementAuthorityError,
+    RbcPublicationError,
 )
 from trackside.rbc import LineInfo, MovementAuthorityIssue, RbcEmulator
 
@@ -217,9 +218,11 @@ def test_positions_on_a_ring_are_unwrapped_near_the_authority(
 def test_a_failed_publication_changes_nothing() -> None:
     with open_session(ZenohSettings(mode="peer", connect=())) as session:
         rbc = RbcEmulator(clock=Clock(), session=session)
-    # The session is closed now: declaring the vehicle's publisher fails.
-    with pytest.raises(TransportError):
+    # The session is closed now: declaring the vehicle's publisher fails, and the RBC says so
+    # with an error of its own.
+    with pytest.raises(RbcPublicationError, match="nothing changed") as raised:
         rbc.issue("URV1", _issue(line_version="v"))
+    assert isinstance(raised.value.__cause__, TransportError)
     assert rbc.current("URV1") is None
     assert rbc.last_ma_id("URV1") == 0
     rbc.close()

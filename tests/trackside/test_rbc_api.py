@@ -16,6 +16,7 @@ from protocol.registry import (
     MOVEMENT_AUTHORITY_CURRENT,
     STATUS,
 )
+from protocol.units import MPS_PER_KMH
 from tests.conftest import wait_for
 from tests.trackside.conftest import login
 
@@ -204,6 +205,26 @@ def test_changes_need_an_authority_and_the_right_direction(
     assert "end_of_authority_m" in missing.text
     bad_vehicle = client.post("/api/v1/rbc/no%20such/ma", json=ISSUE, headers=admin_headers)
     assert bad_vehicle.status_code == 422
+
+
+def test_a_speed_restriction_is_sent_in_si_units_and_a_bad_one_refused(
+    client: TestClient, admin_headers: dict[str, str]
+) -> None:
+    tsr = {"id": "works", "line_id": "bologna-ring", "start_m": 400.0, "end_m": 600.0}
+    sent = client.post(
+        "/api/v1/rbc/URV1/tsr", json=tsr | {"speed_kmh": 30.0}, headers=admin_headers
+    )
+    assert sent.status_code == 201, sent.text
+    assert sent.json()["speed_mps"] == pytest.approx(30.0 * MPS_PER_KMH, abs=1e-12)
+    revoked = client.delete(
+        "/api/v1/rbc/URV1/tsr/works",
+        params={"line_id": "bologna-ring", "start_m": 600.0, "end_m": 400.0},
+        headers=admin_headers,
+    )
+    assert revoked.status_code == 422
+    detail = revoked.json()["detail"]
+    assert detail["message"] == "not a speed restriction"
+    assert "end_m must lie after start_m" in detail["problems"][0]
 
 
 def test_roles(client: TestClient, admin_headers: dict[str, str]) -> None:

@@ -15,6 +15,7 @@ import pytest
 from fastapi.testclient import TestClient
 from starlette.websockets import WebSocketDisconnect
 
+from protocol import messages as m
 from tests.conftest import _postgres_database, wait_for
 from tests.trackside.conftest import headers_of, running_service, running_vehicle
 
@@ -27,10 +28,10 @@ COMMANDS: dict[str, dict[str, Any]] = {
     "disengage": {},
     "rd-target-speed": {"target_speed_kmh": 0.0},
     "emergency-brake": {},
-    "eb-rearm": {"number": 0},
-    "etcs-isolation": {"number": 0},
-    "etcs-insertion": {"number": 0},
-    "vigilance-ack": {"number": 0},
+    "confirmations/eb-rearm": {"number": 0},
+    "confirmations/etcs-isolation": {"number": 0},
+    "confirmations/etcs-insertion": {"number": 0},
+    "confirmations/vigilance-ack": {"number": 0},
     "skip-stop": {"timing_point_id": "east"},
     "train-hold": {"hold": False},
 }
@@ -114,6 +115,10 @@ RULES: dict[tuple[str, str], Rule] = {
     ("POST", "/api/v1/vehicles/{vehicle_id}/journey-profile"): Rule(
         "driver", hold=True, json=lambda: {"journey_id": "matrix"}
     ),
+    # One route for the four confirmations; the matrix calls it with the kind in PATH_VALUES.
+    ("POST", "/api/v1/vehicles/{vehicle_id}/confirmations/{kind}"): Rule(
+        "driver", hold=True, json=lambda: {"number": 0}
+    ),
     ("GET", "/api/v1/vehicles/{vehicle_id}/events"): Rule("observer"),
     ("GET", "/api/v1/vehicles/{vehicle_id}/telemetry"): Rule("observer"),
     ("GET", "/api/v1/lines"): Rule("observer"),
@@ -146,6 +151,7 @@ RULES: dict[tuple[str, str], Rule] = {
         "driver", hold=True, json=(lambda body=body: body)
     )
     for name, body in COMMANDS.items()
+    if not name.startswith("confirmations/")
 }
 PUBLIC = {("POST", "/api/v1/auth/token"), ("GET", "/healthz")}
 RANK = {"observer": 1, "driver": 2, "other_driver": 2, "admin": 3}
@@ -154,6 +160,7 @@ PATH_VALUES = {
     "line_id": "bologna-ring",
     "journey_id": "matrix",
     "restriction_id": "works",
+    "kind": "vigilance-ack",
 }
 
 
@@ -272,7 +279,9 @@ def test_every_command_is_answered_by_the_vehicle_and_audited(service: TestClien
         assert entry["result"] == ("accepted" if answer["accepted"] else "refused"), name
         assert entry["detail"] == answer["reason"]
     actions = {entry["action"] for entry in by_id.values()}
-    assert {"engage", "emergency_brake", "operator_confirm.vigilance", "train_hold"} <= actions
+    assert {"engage", "emergency_brake", "train_hold"} <= actions
+    confirmed = {f"operator_confirm.{kind}" for kind in m.OperatorRequestKind}
+    assert confirmed <= actions  # each path kind reaches the vehicle as its own request kind
     observer = service.get("/api/v1/audit", headers=headers_of(service, "observer"))
     assert observer.status_code == 403
 

@@ -123,3 +123,13 @@ def test_fleet_websocket_refuses_a_bad_token(client: TestClient) -> None:
     ):
         websocket.receive_json()
     assert caught.value.code == 1008
+
+
+def test_a_confirmation_of_no_known_kind_is_refused(
+    client: TestClient, admin_headers: dict[str, str]
+) -> None:
+    answer = client.post(
+        "/api/v1/vehicles/URV1/confirmations/eb-release", json={"number": 0}, headers=admin_headers
+    )
+    assert answer.status_code == 422
+    assert "vigilance-ack" in answer.text  # the kinds there are

@@ -1,17 +1,20 @@
-"""Dependencies shared by the routes: database session, current user, role checks, bridge."""
+"""Dependencies shared by the routes: database session, current user, role checks, bridge.
+
+A token that does not resolve or a role too low raises the services' domain error; the app's
+exception handlers answer it (401, 403), as for the routes.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Coroutine, Iterator
 from typing import Annotated, Any
 
-from fastapi import Depends, HTTPException, Request, status
+from fastapi import Depends, Request
 from fastapi.security import OAuth2PasswordBearer
 from sqlalchemy.orm import Session, sessionmaker
 
 from trackside.bridge import ZenohBridge
 from trackside.config import Settings
-from trackside.errors import AuthenticationError, PermissionDeniedError
 from trackside.models import Role, User
 from trackside.services import users
 from trackside.services.commands import CommandService
@@ -71,18 +74,10 @@ SettingsDep = Annotated[Settings, Depends(get_settings)]
 BridgeDep = Annotated[ZenohBridge, Depends(get_bridge)]
 TokenDep = Annotated[str, Depends(oauth2_scheme)]
 
-UNAUTHORISED = HTTPException(
-    status_code=status.HTTP_401_UNAUTHORIZED,
-    detail="not authenticated",
-    headers={"WWW-Authenticate": "Bearer"},
-)
-
 
 def get_current_user(db: SessionDep, token: TokenDep) -> User:
-    try:
-        return users.resolve_token(db, token)
-    except AuthenticationError as exc:
-        raise UNAUTHORISED from exc
+    """The user of the request's bearer token; 401 when it is not a valid one."""
+    return users.resolve_token(db, token)
 
 
 CurrentUser = Annotated[User, Depends(get_current_user)]
@@ -93,10 +88,7 @@ def require(role: Role) -> Callable[[User], Coroutine[Any, Any, User]]:
     dependencies are ``async`` so that they run on the event loop, not in a worker thread."""
 
     async def check(user: CurrentUser) -> User:
-        try:
-            users.require_role(user, role)
-        except PermissionDeniedError as exc:
-            raise HTTPException(status_code=status.HTTP_403_FORBIDDEN, detail=str(exc)) from exc
+        users.require_role(user, role)
         return user
 
     return check

@@ -1,32 +1,86 @@
-"""Response and request bodies of the REST API (``XPublic`` for what is returned)."""
+"""Request and response bodies of the REST API, every resource's in one place.
+
+Names follow what a body is for: ``XCreate`` for a body that makes a resource, ``XPublic`` for
+what is returned, ``XRequest`` for the body of a command to a vehicle. SI units in every field,
+km/h only where a person types a speed (``target_speed_kmh``, ``speed_kmh``).
+"""
 
 from __future__ import annotations
 
+import json
 from datetime import datetime
+from enum import StrEnum
+from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
 from protocol import messages as m
+from trackdb.journey import Journey, JourneyCheck
 from trackdb.storage import LineSummary
 from trackside.bridge import VehicleSnapshot
+from trackside.models import AuditEntry, Role, TelemetrySample, User, VehicleEvent
+from trackside.services.audit import AuditResult
+from trackside.services.journeys import StoredJourney
 from trackside.services.lines import LineProfile
 
 __all__ = [
+    "AuditPublic",
+    "CommandAckPublic",
+    "ConfirmRequest",
+    "ConfirmationKind",
+    "EmptyRequest",
+    "EventPublic",
+    "HoldPublic",
+    "JourneyCheckPublic",
+    "JourneyProfileAckPublic",
+    "JourneyProfileRequest",
+    "JourneyPublic",
+    "LegPublic",
     "LinePublic",
     "LineProfilePublic",
     "LineRejectedPublic",
     "LineVersionPublic",
     "LineVersionRef",
+    "MovementAuthorityPublic",
     "ProblemsPublic",
+    "RefusedPublic",
+    "SkipStopRequest",
+    "SpeedRestrictionCreate",
+    "TargetSpeedRequest",
+    "TelemetryPublic",
     "TokenPublic",
+    "TrainHoldRequest",
+    "UserCreate",
+    "UserPublic",
     "VehiclePublic",
     "VehicleStatusPublic",
 ]
 
 
+# -- auth and users ----------------------------------------------------------------------------
+
+
 class TokenPublic(BaseModel):
     access_token: str
     token_type: str = "bearer"
+
+
+class UserCreate(BaseModel):
+    username: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.-]+$")
+    password: str = Field(min_length=8, max_length=256)
+    role: Role
+
+
+class UserPublic(BaseModel):
+    username: str
+    role: Role
+
+    @classmethod
+    def from_user(cls, user: User) -> UserPublic:
+        return cls(username=user.username, role=Role(user.role))
+
+
+# -- vehicles ----------------------------------------------------------------------------------
 
 
 class VehicleStatusPublic(BaseModel):
@@ -91,6 +145,151 @@ class VehiclePublic(BaseModel):
             holder=holder,
             simulated_operator=simulated_operator,
         )
+
+
+class HoldPublic(BaseModel):
+    vehicle_id: str
+    holder: str | None
+    since: datetime | None = None
+
+
+class CommandAckPublic(BaseModel):
+    """What the vehicle answered: accepted for execution, or refused with the reason."""
+
+    vehicle_id: str
+    command_id: int
+    accepted: bool
+    reason: str | None
+
+    @classmethod
+    def from_ack(cls, ack: m.CommandAck) -> CommandAckPublic:
+        return cls(
+            vehicle_id=ack.vehicle_id,
+            command_id=ack.command_id,
+            accepted=ack.accepted,
+            reason=ack.reason,
+        )
+
+
+class EmptyRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class TargetSpeedRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    target_speed_kmh: float = Field(ge=0.0, le=360.0, allow_inf_nan=False, description="[km/h]")
+
+
+class ConfirmationKind(StrEnum):
+    """Which request of the Vital Control an operator's confirmation answers (the path's
+    last part: ``/vehicles/{id}/confirmations/{kind}``)."""
+
+    EB_REARM = "eb-rearm"
+    ETCS_ISOLATION = "etcs-isolation"
+    ETCS_INSERTION = "etcs-insertion"
+    VIGILANCE_ACK = "vigilance-ack"
+
+    @property
+    def request(self) -> m.OperatorRequestKind:
+        """The kind of the VC request confirmed."""
+        return _CONFIRMED_REQUESTS[self]
+
+
+_CONFIRMED_REQUESTS = {
+    ConfirmationKind.EB_REARM: m.OperatorRequestKind.EB_REARM,
+    ConfirmationKind.ETCS_ISOLATION: m.OperatorRequestKind.ETCS_ISOLATION,
+    ConfirmationKind.ETCS_INSERTION: m.OperatorRequestKind.ETCS_INSERTION,
+    ConfirmationKind.VIGILANCE_ACK: m.OperatorRequestKind.VIGILANCE,
+}
+
+
+class ConfirmRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    number: int = Field(ge=0, le=255, description="The number of the VC request answered")
+
+
+class SkipStopRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    timing_point_id: str = Field(min_length=1, max_length=64)
+
+
+class TrainHoldRequest(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+    hold: bool
+
+
+class JourneyProfileRequest(BaseModel):
+    """Which stored journey to send, and which version (the latest when omitted)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    journey_id: str = Field(min_length=1, max_length=64)
+    version: int | None = Field(default=None, ge=1, le=2**31 - 1)
+    timeout_s: float = Field(default=5.0, gt=0.0, le=30.0, description="Wait for the JPAck [s]")
+
+
+class JourneyProfileAckPublic(BaseModel):
+    """What the vehicle answered: its JPAck (accepted, or rejected with the reason)."""
+
+    journey_id: str
+    version: int
+    accepted: bool
+    reason: str | None
+
+    @classmethod
+    def from_ack(cls, ack: m.JourneyProfileAck) -> JourneyProfileAckPublic:
+        return cls(
+            journey_id=ack.journey_id, version=ack.version, accepted=ack.accepted, reason=ack.reason
+        )
+
+
+class EventPublic(BaseModel):
+    sim_time_s: float = Field(description="Onboard simulated time [s]")
+    received_at: datetime
+    severity: m.EventSeverity
+    code: str
+    text: str
+    seq: int
+
+    @classmethod
+    def from_row(cls, row: VehicleEvent) -> EventPublic:
+        return cls(
+            sim_time_s=row.sim_time_s,
+            received_at=row.received_at,
+            severity=m.EventSeverity(row.severity),
+            code=row.code,
+            text=row.text,
+            seq=row.seq,
+        )
+
+
+class TelemetryPublic(BaseModel):
+    """One sample of the 1 Hz history (SI units)."""
+
+    sim_time_s: float
+    received_at: datetime
+    position_m: float
+    speed_mps: float
+    traction_force_n: float
+    reference_speed_mps: float | None
+    permitted_speed_mps: float | None
+    intervention_speed_mps: float | None
+    ato_state: str
+    etcs_mode: str
+    sc_state: str
+    eb: bool
+    journey_id: str | None
+
+    @classmethod
+    def from_row(cls, row: TelemetrySample) -> TelemetryPublic:
+        return cls.model_validate(row, from_attributes=True)
+
+
+# -- lines -------------------------------------------------------------------------------------
 
 
 class LinePublic(BaseModel):
@@ -176,6 +375,117 @@ class LineProfilePublic(BaseModel):
         )
 
 
+# -- journeys ----------------------------------------------------------------------------------
+
+
+class LegPublic(BaseModel):
+    index: int
+    from_id: str
+    to_id: str
+    distance_m: float
+    scheduled_s: float
+    minimum_s: float
+    shortfall_s: float
+
+
+class JourneyCheckPublic(BaseModel):
+    valid: bool
+    problems: list[str]
+    legs: list[LegPublic]
+    line_version: str
+
+    @classmethod
+    def from_check(cls, check: JourneyCheck, line_version: str) -> JourneyCheckPublic:
+        legs = [
+            LegPublic(
+                index=leg.index,
+                from_id=leg.from_id,
+                to_id=leg.to_id,
+                distance_m=leg.distance_m,
+                scheduled_s=leg.scheduled_s,
+                minimum_s=leg.minimum_s,
+                shortfall_s=leg.shortfall_s,
+            )
+            for leg in check.legs
+        ]
+        return cls(
+            valid=check.valid, problems=list(check.problems), legs=legs, line_version=line_version
+        )
+
+
+class JourneyPublic(BaseModel):
+    journey: Journey
+    version: int
+    line_version: str
+    created_by: str
+
+    @classmethod
+    def from_stored(cls, stored: StoredJourney) -> JourneyPublic:
+        return cls(
+            journey=stored.journey,
+            version=stored.version,
+            line_version=stored.line_version,
+            created_by=stored.created_by,
+        )
+
+
+# -- RBC ---------------------------------------------------------------------------------------
+
+
+class MovementAuthorityPublic(BaseModel):
+    """An MA message as sent to the vehicle, with its SvL and the vehicle's last acknowledgement."""
+
+    movement_authority: m.MovementAuthorityMessage
+    supervised_location_m: float | None = Field(
+        description="Chainage of the SvL [m]; null when revoked"
+    )
+    acknowledgement: m.MovementAuthorityAck | None = Field(
+        description="The vehicle's latest acknowledgement of any of its MAs"
+    )
+
+
+class SpeedRestrictionCreate(BaseModel):
+    """A temporary speed restriction to put in force on the vehicle's line."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.:-]+$")
+    line_id: str = Field(min_length=1, max_length=64)
+    start_m: float = Field(ge=0.0, allow_inf_nan=False, description="Start, chainage [m]")
+    end_m: float = Field(gt=0.0, allow_inf_nan=False, description="End, chainage [m]")
+    speed_kmh: float = Field(gt=0.0, le=360.0, allow_inf_nan=False, description="Limit [km/h]")
+
+
+# -- audit -------------------------------------------------------------------------------------
+
+
+class AuditPublic(BaseModel):
+    id: int
+    at: datetime
+    user: str
+    vehicle_id: str | None
+    action: str
+    request: dict[str, Any]
+    result: AuditResult
+    detail: str | None
+
+    @classmethod
+    def from_entry(cls, entry: AuditEntry) -> AuditPublic:
+        return cls(
+            id=entry.id,
+            at=entry.at,
+            user=entry.username,
+            vehicle_id=entry.vehicle_id,
+            action=entry.action,
+            request=json.loads(entry.request),
+            result=AuditResult(entry.result),
+            detail=entry.detail,
+        )
+
+
+# -- refusals ----------------------------------------------------------------------------------
+
+
 class ProblemsPublic(BaseModel):
     """Why a request was refused: a message and every problem found, with its location."""
 
@@ -185,5 +495,11 @@ class ProblemsPublic(BaseModel):
 
 class LineRejectedPublic(BaseModel):
     """The body of a 422 answer to a line import or a profile request."""
+
+    detail: ProblemsPublic
+
+
+class RefusedPublic(BaseModel):
+    """The body of a refusal (409, 422)."""
 
     detail: ProblemsPublic

@@ -12,26 +12,16 @@ from sqlalchemy.orm import Session
 from trackdb import TrackMap
 from trackdb.journey import Journey, JourneyCheck, check_journey
 from trackdb.storage import LineNotFoundError, get_line
-from trackside.errors import ConflictError, NotFoundError, TracksideError
+from trackside.errors import ConflictError, InvalidJourneyError, NotFoundError
 from trackside.models import JourneyRow
 
 __all__ = [
-    "InvalidJourneyError",
     "StoredJourney",
     "create_journey",
     "get_journey",
     "list_journeys",
     "validate_journey",
 ]
-
-
-class InvalidJourneyError(TracksideError):
-    """A journey that fails validation against its line."""
-
-    def __init__(self, check: JourneyCheck, line_version: str) -> None:
-        super().__init__("; ".join(check.problems))
-        self.check = check
-        self.line_version = line_version
 
 
 @dataclass(frozen=True)

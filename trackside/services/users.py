@@ -8,7 +8,12 @@ from sqlalchemy import select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
-from trackside.errors import AuthenticationError, ConflictError, PermissionDeniedError
+from trackside.errors import (
+    AuthenticationError,
+    ConflictError,
+    InvalidTokenError,
+    PermissionDeniedError,
+)
 from trackside.models import ApiToken, Role, User
 from trackside.security import hash_password, new_token, token_digest, verify_password
 
@@ -84,13 +89,13 @@ def issue_token(db: Session, user: User, ttl_s: float) -> str:
 def resolve_token(db: Session, token: str) -> User:
     row = db.scalar(select(ApiToken).where(ApiToken.token_hash == token_digest(token)))
     if row is None or row.revoked:
-        raise AuthenticationError("unknown or revoked token")
+        raise InvalidTokenError("unknown or revoked token")
     expires = row.expires_at if row.expires_at.tzinfo else row.expires_at.replace(tzinfo=UTC)
     if expires <= _now():
-        raise AuthenticationError("token expired")
+        raise InvalidTokenError("token expired")
     user = db.get(User, row.user_id)
     if user is None:
-        raise AuthenticationError("token of a deleted user")
+        raise InvalidTokenError("token of a deleted user")
     return user
 
 

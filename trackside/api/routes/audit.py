@@ -2,42 +2,15 @@
 
 from __future__ import annotations
 
-import json
-from datetime import datetime
-from typing import Annotated, Any
+from typing import Annotated
 
 from fastapi import APIRouter, Query
-from pydantic import BaseModel
 
 from trackside.api.deps import AdminUser, SessionDep
-from trackside.models import AuditEntry
+from trackside.api.schemas import AuditPublic
 from trackside.services import audit
 
 router = APIRouter(prefix="/audit", tags=["audit"])
-
-
-class AuditPublic(BaseModel):
-    id: int
-    at: datetime
-    user: str
-    vehicle_id: str | None
-    action: str
-    request: dict[str, Any]
-    result: audit.AuditResult
-    detail: str | None
-
-    @classmethod
-    def from_entry(cls, entry: AuditEntry) -> AuditPublic:
-        return cls(
-            id=entry.id,
-            at=entry.at,
-            user=entry.username,
-            vehicle_id=entry.vehicle_id,
-            action=entry.action,
-            request=json.loads(entry.request),
-            result=audit.AuditResult(entry.result),
-            detail=entry.detail,
-        )
 
 
 @router.get("")

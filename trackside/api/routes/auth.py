@@ -42,13 +42,9 @@ def login(
         )
     try:
         user = users.authenticate(db, form.username, form.password)
-    except AuthenticationError as exc:
-        limiter.failed(form.username, address)
-        raise HTTPException(
-            status_code=status.HTTP_401_UNAUTHORIZED,
-            detail="wrong username or password",
-            headers={"WWW-Authenticate": "Bearer"},
-        ) from exc
+    except AuthenticationError:
+        limiter.failed(form.username, address)  # counted; the app's handler answers 401
+        raise
     limiter.succeeded(form.username)
     return TokenPublic(access_token=users.issue_token(db, user, settings.token_ttl_s))
 

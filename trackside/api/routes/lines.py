@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import Annotated, Any
 
-from fastapi import APIRouter, Depends, HTTPException, Query, Request, Response, status
+from fastapi import APIRouter, Depends, Query, Request, Response, status
 
-from trackdb import Line, LineConflictError, LineNotFoundError, LineValidationError
+from trackdb import Line
 from trackside.api.deps import AdminUser, ObserverUser, SessionDep
 from trackside.api.schemas import (
     LineProfilePublic,
@@ -17,7 +15,6 @@ from trackside.api.schemas import (
     LineVersionPublic,
     LineVersionRef,
 )
-from trackside.errors import InvalidRequestError
 from trackside.services import lines
 
 router = APIRouter(prefix="/lines", tags=["lines"])
@@ -46,23 +43,6 @@ async def _raw_body(request: Request) -> bytes:
 RawBody = Annotated[bytes, Depends(_raw_body)]
 
 
-@contextmanager
-def _domain_errors() -> Iterator[None]:
-    """Turn the services' domain errors into HTTP answers."""
-    try:
-        yield
-    except LineNotFoundError as exc:
-        raise HTTPException(status_code=status.HTTP_404_NOT_FOUND, detail=str(exc)) from exc
-    except LineValidationError as exc:
-        detail = {"message": str(exc), "problems": exc.problems}
-        raise HTTPException(status_code=422, detail=detail) from exc
-    except InvalidRequestError as exc:
-        detail = {"message": str(exc), "problems": [str(exc)]}
-        raise HTTPException(status_code=422, detail=detail) from exc
-    except LineConflictError as exc:
-        raise HTTPException(status_code=status.HTTP_409_CONFLICT, detail=str(exc)) from exc
-
-
 def _json_document(document: str, version: str, *, download: str | None = None) -> Response:
     headers = {"ETag": f'"{version}"'}
     if download is not None:
@@ -88,8 +68,7 @@ def list_lines(db: SessionDep, _user: ObserverUser) -> list[LinePublic]:
 )
 def import_line(body: RawBody, response: Response, db: SessionDep, _admin: AdminUser) -> LinePublic:
     """Import a line document (admin only); it becomes the line's current version."""
-    with _domain_errors():
-        outcome = lines.import_line(db, body)
+    outcome = lines.import_line(db, body)
     if not outcome.new_version:
         response.status_code = status.HTTP_200_OK
     return LinePublic.from_summary(outcome.summary)
@@ -100,8 +79,7 @@ def read_line(
     line_id: str, db: SessionDep, _user: ObserverUser, version: VersionQuery = None
 ) -> Response:
     """The full line document, at its current version or at ``version``."""
-    with _domain_errors():
-        document, version = lines.line_document(db, line_id, version)
+    document, version = lines.line_document(db, line_id, version)
     return _json_document(document, version)
 
 
@@ -114,23 +92,20 @@ def export_line(
     line_id: str, db: SessionDep, _user: ObserverUser, version: VersionQuery = None
 ) -> Response:
     """Download the line's canonical JSON; its SHA-256 is the version."""
-    with _domain_errors():
-        document, version = lines.line_document(db, line_id, version)
+    document, version = lines.line_document(db, line_id, version)
     return _json_document(document, version, download=f"{line_id}-{version[:12]}.json")
 
 
 @router.get("/{line_id}/version", responses=NOT_FOUND)
 def read_version(line_id: str, db: SessionDep, _user: ObserverUser) -> LineVersionRef:
     """The line's current version, for comparing track data with the onboard."""
-    with _domain_errors():
-        return LineVersionRef(id=line_id, version=lines.current_version(db, line_id))
+    return LineVersionRef(id=line_id, version=lines.current_version(db, line_id))
 
 
 @router.get("/{line_id}/versions", responses=NOT_FOUND)
 def list_versions(line_id: str, db: SessionDep, _user: ObserverUser) -> list[LineVersionPublic]:
     """Every stored version of the line, oldest first."""
-    with _domain_errors():
-        return [LineVersionPublic.from_summary(s) for s in lines.line_versions(db, line_id)]
+    return [LineVersionPublic.from_summary(s) for s in lines.line_versions(db, line_id)]
 
 
 @router.get("/{line_id}/profile", responses={**NOT_FOUND, **REJECTED})
@@ -148,8 +123,7 @@ def read_profile(
     version: VersionQuery = None,
 ) -> LineProfilePublic:
     """Gradient, curvature, line speed, MRSP and altitude sampled along the line, SI units."""
-    with _domain_errors():
-        profile = lines.line_profile(
-            db, line_id, from_m=from_m, to_m=to_m, step_m=step_m, version=version
-        )
+    profile = lines.line_profile(
+        db, line_id, from_m=from_m, to_m=to_m, step_m=step_m, version=version
+    )
     return LineProfilePublic.from_profile(profile)

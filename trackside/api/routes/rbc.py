@@ -7,24 +7,17 @@ logger. A refused change sends nothing and changes nothing.
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
-from contextlib import contextmanager
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, HTTPException, Path, Request, status
-from pydantic import BaseModel, Field
 
-from protocol import TransportError
 from protocol import messages as m
+from protocol.units import MPS_PER_KMH
 from trackside.api.deps import AdminUser, ObserverUser
-from trackside.api.schemas import ProblemsPublic
-from trackside.errors import (
-    EndOfAuthorityBehindVehicleError,
-    MovementAuthorityRefusedError,
-    NoMovementAuthorityError,
-)
+from trackside.api.schemas import MovementAuthorityPublic, RefusedPublic, SpeedRestrictionCreate
 from trackside.models import User
 from trackside.rbc import MovementAuthorityIssue, RbcEmulator
+from trackside.rbc_rules import speed_restriction
 
 router = APIRouter(prefix="/rbc", tags=["rbc"])
 
@@ -43,24 +36,6 @@ def get_rbc(request: Request) -> RbcEmulator:
 RbcDep = Annotated[RbcEmulator, Depends(get_rbc)]
 
 
-class MovementAuthorityPublic(BaseModel):
-    """An MA message as sent to the vehicle, with its SvL and the vehicle's last acknowledgement."""
-
-    movement_authority: m.MovementAuthorityMessage
-    supervised_location_m: float | None = Field(
-        description="Chainage of the SvL [m]; null when revoked"
-    )
-    acknowledgement: m.MovementAuthorityAck | None = Field(
-        description="The vehicle's latest acknowledgement of any of its MAs"
-    )
-
-
-class RefusedPublic(BaseModel):
-    """The body of a refusal (409, 422)."""
-
-    detail: ProblemsPublic
-
-
 NOT_FOUND: dict[int | str, dict[str, Any]] = {
     404: {"description": "The RBC holds no MA for the vehicle"}
 }
@@ -72,26 +47,6 @@ REFUSED: dict[int | str, dict[str, Any]] = {
     },
     503: {"description": "The MA could not be published; nothing changed"},
 }
-
-
-@contextmanager
-def _rbc_errors() -> Iterator[None]:
-    """Turn the RBC's domain errors into HTTP answers."""
-    try:
-        yield
-    except NoMovementAuthorityError as exc:
-        raise HTTPException(status_code=status.HTTP_404_NOT_FOUND, detail=str(exc)) from exc
-    except EndOfAuthorityBehindVehicleError as exc:
-        detail = {"message": str(exc), "problems": [str(exc)]}
-        raise HTTPException(status_code=status.HTTP_409_CONFLICT, detail=detail) from exc
-    except MovementAuthorityRefusedError as exc:
-        detail = {"message": str(exc), "problems": [str(exc)]}
-        raise HTTPException(status_code=422, detail=detail) from exc
-    except TransportError as exc:
-        raise HTTPException(
-            status_code=status.HTTP_503_SERVICE_UNAVAILABLE,
-            detail=f"the MA could not be published, nothing changed: {exc}",
-        ) from exc
 
 
 def _public(rbc: RbcEmulator, message: m.MovementAuthorityMessage) -> MovementAuthorityPublic:
@@ -134,8 +89,7 @@ def issue_movement_authority(
     vehicle_id: VehiclePath, body: MovementAuthorityIssue, rbc: RbcDep, user: AdminUser
 ) -> MovementAuthorityPublic:
     """Issue a new MA to the vehicle (admin only), replacing any it holds."""
-    with _rbc_errors():
-        message = rbc.issue(vehicle_id, body)
+    message = rbc.issue(vehicle_id, body)
     _audited(user, message)
     return _public(rbc, message)
 
@@ -145,8 +99,7 @@ def extend_movement_authority(
     vehicle_id: VehiclePath, body: m.MovementAuthorityEnd, rbc: RbcDep, user: AdminUser
 ) -> MovementAuthorityPublic:
     """Move the EoA forward, with the new end's danger point, overlap and release speed."""
-    with _rbc_errors():
-        message = rbc.extend(vehicle_id, body)
+    message = rbc.extend(vehicle_id, body)
     _audited(user, message)
     return _public(rbc, message)
 
@@ -156,8 +109,7 @@ def shorten_movement_authority(
     vehicle_id: VehiclePath, body: m.MovementAuthorityEnd, rbc: RbcDep, user: AdminUser
 ) -> MovementAuthorityPublic:
     """Move the EoA back; refused (409) if it would fall at or behind the vehicle's front end."""
-    with _rbc_errors():
-        message = rbc.shorten(vehicle_id, body)
+    message = rbc.shorten(vehicle_id, body)
     _audited(user, message)
     return _public(rbc, message)
 
@@ -167,56 +119,25 @@ def revoke_movement_authority(
     vehicle_id: VehiclePath, rbc: RbcDep, user: AdminUser
 ) -> MovementAuthorityPublic:
     """Revoke the vehicle's MA (admin only); the onboard applies it as an emergency stop."""
-    with _rbc_errors():
-        message = rbc.revoke(vehicle_id)
+    message = rbc.revoke(vehicle_id)
     _audited(user, message)
     return _public(rbc, message)
 
 
-class SpeedRestrictionIssue(BaseModel):
-    """A temporary speed restriction to put in force on the vehicle's line."""
-
-    model_config = {"extra": "forbid"}
-
-    id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_.:-]+$")
-    line_id: str = Field(min_length=1, max_length=64)
-    start_m: float = Field(ge=0.0, allow_inf_nan=False, description="Start, chainage [m]")
-    end_m: float = Field(gt=0.0, allow_inf_nan=False, description="End, chainage [m]")
-    speed_kmh: float = Field(gt=0.0, le=360.0, allow_inf_nan=False, description="Limit [km/h]")
-
-
-def _restriction(
-    vehicle_id: str,
-    restriction_id: str,
-    line_id: str,
-    start_m: float,
-    end_m: float,
-    speed_mps: float | None,
-) -> m.SpeedRestrictionMessage:
-    try:
-        return m.SpeedRestrictionMessage(
-            vehicle_id=vehicle_id,
-            restriction_id=restriction_id,
-            line_id=line_id,
-            start_m=start_m,
-            end_m=end_m,
-            speed_mps=speed_mps,
-        )
-    except ValueError as exc:
-        detail = {"message": "not a speed restriction", "problems": [str(exc)]}
-        raise HTTPException(status_code=422, detail=detail) from exc
-
-
 @router.post("/{vehicle_id}/tsr", status_code=status.HTTP_201_CREATED, responses=REFUSED)
 def issue_speed_restriction(
-    vehicle_id: VehiclePath, body: SpeedRestrictionIssue, rbc: RbcDep, user: AdminUser
+    vehicle_id: VehiclePath, body: SpeedRestrictionCreate, rbc: RbcDep, user: AdminUser
 ) -> m.SpeedRestrictionMessage:
     """Send a temporary speed restriction to the vehicle (admin only)."""
-    message = _restriction(
-        vehicle_id, body.id, body.line_id, body.start_m, body.end_m, body.speed_kmh / 3.6
+    message = speed_restriction(
+        vehicle_id,
+        restriction_id=body.id,
+        line_id=body.line_id,
+        start_m=body.start_m,
+        end_m=body.end_m,
+        speed_mps=body.speed_kmh * MPS_PER_KMH,
     )
-    with _rbc_errors():
-        rbc.restrict_speed(vehicle_id, message)
+    rbc.restrict_speed(vehicle_id, message)
     _audit.info(
         "user=%s action=rbc.tsr vehicle=%s tsr=%s %g..%g m %g km/h",
         user.username,
@@ -240,9 +161,15 @@ def revoke_speed_restriction(
     user: AdminUser,
 ) -> m.SpeedRestrictionMessage:
     """Revoke a temporary speed restriction on the vehicle (admin only)."""
-    message = _restriction(vehicle_id, restriction_id, line_id, start_m, end_m, None)
-    with _rbc_errors():
-        rbc.restrict_speed(vehicle_id, message)
+    message = speed_restriction(
+        vehicle_id,
+        restriction_id=restriction_id,
+        line_id=line_id,
+        start_m=start_m,
+        end_m=end_m,
+        speed_mps=None,
+    )
+    rbc.restrict_speed(vehicle_id, message)
     _audit.info(
         "user=%s action=rbc.tsr_revoked vehicle=%s tsr=%s",
         user.username,
