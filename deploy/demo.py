@@ -14,7 +14,7 @@ from pathlib import Path
 
 from rich.console import Console
 
-from deploy.processes import ato_command, child_process
+from deploy.processes import ChildProcess, ato_command
 from protocol import (
     LivelinessWatcher,
     ProtocolError,
@@ -101,7 +101,12 @@ def run_demo(*, port: int, data_dir: Path) -> None:
     onboard_args = ato_command(
         "onboard", "--vehicle", DEMO_VEHICLE, "--zenoh", DEMO_ROUTER, "--vc-datalog", str(datalog)
     )
-    with child_process(onboard_args, log_file=data_dir / f"onboard-{DEMO_VEHICLE}.log"):
+    onboard = ChildProcess(
+        onboard_args,
+        name=f"onboard-{DEMO_VEHICLE}",
+        log_file=data_dir / f"onboard-{DEMO_VEHICLE}.log",
+    )
+    with onboard:
         driver = threading.Thread(target=_demo_driver, args=(stop,), daemon=True)
         driver.start()
         console = Console()

@@ -17,11 +17,12 @@ lets the stalled ones go on; the sessions' own connect retries rebuild whatever 
 The forwarding runs in a child process (``python -m deploy.link_proxy``), not on a thread of the
 caller's: in a simulation's process a planner running in C can hold the interpreter lock for
 longer than Zenoh's link lease (1 s), and a forwarding thread held off that long breaks the link
-with no fault injected. :class:`LinkProxy` drives the child over its standard input and output,
-one JSON line per request and per answer; :meth:`LinkProxy.cut` and :meth:`LinkProxy.restore`
-return once done. The proxy knows nothing of simulated time: the scenario runner decides when to
-cut and to restore (``deploy.scenario.zenoh_link``). Standard library only, so that the child
-starts in a moment.
+with no fault injected. :class:`LinkProxy` starts and stops the child with
+:class:`deploy.processes.ChildProcess` and drives it over its standard input and output, one JSON
+line per request and per answer (the first answer says it listens); :meth:`LinkProxy.cut` and
+:meth:`LinkProxy.restore` return once done. The proxy knows nothing of simulated time: the
+scenario runner decides when to cut and to restore (``deploy.scenario.zenoh_link``). The child
+runs this module on the standard library alone, so that it starts in a moment.
 """
 
 from __future__ import annotations
@@ -30,16 +31,18 @@ import argparse
 import asyncio
 import contextlib
 import json
-import select
 import signal
 import socket
 import struct
-import subprocess
 import sys
 import threading
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from typing import IO, Any, Literal, Self
+from typing import IO, TYPE_CHECKING, Any, Literal, Self
+
+if TYPE_CHECKING:
+    # Imported where the parent starts the child: the child itself runs on the standard library.
+    from deploy.processes import ChildProcess
 
 __all__ = ["LinkMode", "LinkProxy", "LinkProxyError", "LinkStats", "main"]
 
@@ -83,7 +86,7 @@ class LinkProxy:
         self.target = target
         self._bind = (host, port)
         self._address: tuple[str, int] | None = None
-        self._child: subprocess.Popen[str] | None = None
+        self._child: ChildProcess | None = None
         self._lock = threading.Lock()
         self._up = True
 
@@ -102,6 +105,8 @@ class LinkProxy:
         """Start the child process; return once it listens."""
         if self._child is not None:
             return
+        from deploy.processes import ChildProcess
+
         host, port = self._bind
         command = [
             sys.executable,
@@ -114,9 +119,14 @@ class LinkProxy:
             "--port",
             str(port),
         ]
-        self._child = subprocess.Popen(
-            command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+        self._child = ChildProcess(
+            command,
+            name="link proxy",
+            control=True,
+            stop_line=json.dumps({"op": "close"}),
+            stop_timeout_s=ANSWER_TIMEOUT_S,
         )
+        self._child.start()
         try:
             answer = self._read(START_TIMEOUT_S)
         except LinkProxyError:
@@ -132,19 +142,8 @@ class LinkProxy:
     def close(self) -> None:
         """Stop the child: it closes every connection."""
         child, self._child = self._child, None
-        if child is None:
-            return
-        with contextlib.suppress(OSError, ValueError):
-            assert child.stdin is not None
-            child.stdin.write(json.dumps({"op": "close"}) + "\n")
-            child.stdin.close()
-        try:
-            child.wait(ANSWER_TIMEOUT_S)
-        except subprocess.TimeoutExpired:
-            child.kill()
-            child.wait()
-        if child.stdout is not None:
-            child.stdout.close()
+        if child is not None:
+            child.stop()
 
     def __enter__(self) -> Self:
         self.start()
@@ -188,22 +187,17 @@ class LinkProxy:
     def _request(self, op: str, **fields: Any) -> dict[str, Any]:
         with self._lock:
             child = self._child
-            if child is None or child.stdin is None:
+            if child is None:
                 raise LinkProxyError("the proxy is not started")
             try:
-                child.stdin.write(json.dumps({"op": op, **fields}) + "\n")
-                child.stdin.flush()
-            except OSError as exc:
+                child.send_line(json.dumps({"op": op, **fields}))
+            except (OSError, ValueError) as exc:
                 raise LinkProxyError(f"the proxy is gone: {exc}") from exc
             return self._read(ANSWER_TIMEOUT_S)
 
     def _read(self, timeout_s: float) -> dict[str, Any]:
         child = self._child
-        assert child is not None
-        assert child.stdout is not None
-        # One request, one answer line: nothing is ever left in the reader's buffer.
-        ready, _, _ = select.select([child.stdout], [], [], timeout_s)
-        line = child.stdout.readline() if ready else ""
+        line = None if child is None else child.read_line(timeout_s)
         if not line:
             raise LinkProxyError(f"the proxy did not answer within {timeout_s} s")
         answer: dict[str, Any] = json.loads(line)

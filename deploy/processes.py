@@ -1,25 +1,57 @@
-"""Running the parts: an onboard in this process, or any ``ato`` subcommand as a child."""
+"""Running the parts: an onboard in this process, or any ``ato`` subcommand as a child.
+
+:class:`ChildProcess` is the one supervisor of a child process, for ``ato up`` (its router,
+trackside and onboards), ``ato demo`` (its onboard), the benches and the link proxy of the
+``zenoh_link_loss`` fault: it starts the child with its command and environment, keeps its output
+(appended to a log file, or on pipes for a line protocol), waits until it is ready (a line on its
+standard output, a port that accepts connections, any check: :meth:`ChildProcess.wait_ready`) and
+stops it (asked to stop, waited for, then killed), as a context manager.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import logging
+import select
 import signal
+import socket
 import subprocess
 import sys
 import threading
-from collections.abc import Iterator, Sequence
+import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
+from typing import IO, TYPE_CHECKING, Self
 
-from onboard.node import Fidelity, OnboardNode, OnboardSettings
-from onboard.runtime import RealTimeClock
-from protocol import ZenohSettings, open_session
-from trackdb import TrackMap, load_seed_line
+if TYPE_CHECKING:
+    from onboard.node import Fidelity
+    from protocol import ZenohSettings
 
-__all__ = ["ato_command", "child_process", "run_onboard", "stop_on_signals"]
+__all__ = [
+    "ChildError",
+    "ChildProcess",
+    "accepts_connections",
+    "ato_command",
+    "run_onboard",
+    "stop_on_signals",
+    "wait_ready",
+]
 
 _log = logging.getLogger(__name__)
+
+STOP_TIMEOUT_S = 5.0
+"""How long a child asked to stop may take before it is killed [s]."""
+READY_POLL_S = 0.1
+"""How often a readiness check is repeated [s]."""
+_PR_SET_PDEATHSIG = 1
+
+
+class ChildError(RuntimeError):
+    """A child is not as asked: not started, or not ready (it exited, the wait for it timed out
+    or was interrupted)."""
 
 
 def ato_command(*args: str) -> list[str]:
@@ -27,27 +59,221 @@ def ato_command(*args: str) -> list[str]:
     return [sys.executable, "-m", "deploy", *args]
 
 
-@contextmanager
-def child_process(
-    args: Sequence[str], *, log_file: Path | None = None, stop_timeout_s: float = 5.0
-) -> Iterator[subprocess.Popen[bytes]]:
-    """Start a child for the ``with`` block; SIGTERM it (then SIGKILL) on exit."""
-    log = open(log_file, "ab") if log_file is not None else None  # noqa: SIM115 - closed below
-    process = subprocess.Popen(
-        list(args), stdout=log or subprocess.DEVNULL, stderr=subprocess.STDOUT if log else None
-    )
+def _die_with_parent() -> None:
+    """In the child, before exec: SIGTERM when the parent dies (Linux)."""
     try:
-        yield process
-    finally:
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    except OSError:
+        pass
+
+
+def accepts_connections(host: str, port: int, *, timeout_s: float = 0.2) -> bool:
+    """Whether a TCP connection to ``host:port`` is accepted now: a child that listens is up."""
+    with socket.socket() as probe:
+        probe.settimeout(timeout_s)
+        return probe.connect_ex((host, port)) == 0
+
+
+class ChildProcess:
+    """One child process under supervision, from its start to its stop; a context manager.
+
+    Parameters
+    ----------
+    args
+        The command line.
+    name
+        What messages call the child (default: the command's first word).
+    env
+        Its environment (default: this process's).
+    log_file
+        Where its standard output and error are appended. Without it, its output is discarded
+        and its errors go to this process's standard error.
+    control
+        Its standard input and output are pipes carrying one line per message
+        (:meth:`send_line`, :meth:`read_line`) instead.
+    stop_line
+        With ``control``: the line that asks the child to stop, before its input is closed.
+        Without it, :meth:`stop` asks with SIGTERM.
+    die_with_parent
+        Linux: the kernel sends the child SIGTERM when the thread that started it ends, so that
+        nothing is orphaned if this process dies without cleaning up (``PR_SET_PDEATHSIG``). For
+        a parent that starts its children from its main thread.
+    stop_timeout_s
+        How long :meth:`stop` waits for the child before it kills it [s].
+    """
+
+    def __init__(
+        self,
+        args: Sequence[str],
+        *,
+        name: str | None = None,
+        env: Mapping[str, str] | None = None,
+        log_file: Path | None = None,
+        control: bool = False,
+        stop_line: str | None = None,
+        die_with_parent: bool = False,
+        stop_timeout_s: float = STOP_TIMEOUT_S,
+    ) -> None:
+        self.args = list(args)
+        self.name = name or Path(self.args[0]).name
+        self.env = None if env is None else dict(env)
+        self.log_file = log_file
+        self.control = control
+        self.stop_line = stop_line
+        self.die_with_parent = die_with_parent
+        self.stop_timeout_s = stop_timeout_s
+        self._process: subprocess.Popen[bytes] | None = None
+        self._log: IO[bytes] | None = None
+
+    # -- life cycle ----------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Start the child (once; starting a started child does nothing)."""
+        if self._process is not None:
+            return
+        if self.log_file is not None:
+            self.log_file.parent.mkdir(parents=True, exist_ok=True)
+            self._log = open(self.log_file, "ab")  # noqa: SIM115 - closed in stop()
+        pipe = subprocess.PIPE if self.control else None
+        try:
+            self._process = subprocess.Popen(
+                self.args,
+                stdin=pipe or subprocess.DEVNULL,
+                stdout=pipe or self._log or subprocess.DEVNULL,
+                stderr=self._log if self.control else (subprocess.STDOUT if self._log else None),
+                env=self.env,
+                preexec_fn=_die_with_parent
+                if self.die_with_parent and sys.platform == "linux"
+                else None,
+            )
+        except BaseException:
+            self._close_files()
+            raise
+
+    def stop(self) -> int | None:
+        """Ask the child to stop, wait up to ``stop_timeout_s``, then kill it; its exit status
+        (``None`` if it never started)."""
+        process = self._process
+        if process is None:
+            return None
         if process.poll() is None:
-            process.terminate()
+            if self.control and self.stop_line is not None:
+                with contextlib.suppress(OSError, ValueError):
+                    self.send_line(self.stop_line)
+                with contextlib.suppress(OSError):
+                    assert process.stdin is not None
+                    process.stdin.close()
+            else:
+                process.terminate()
             try:
-                process.wait(stop_timeout_s)
+                process.wait(self.stop_timeout_s)
             except subprocess.TimeoutExpired:
                 process.kill()
                 process.wait()
-        if log is not None:
-            log.close()
+        self._close_files()
+        return process.returncode
+
+    def _close_files(self) -> None:
+        process = self._process
+        for stream in (process.stdin, process.stdout) if process is not None else ():
+            if stream is not None:
+                with contextlib.suppress(OSError):
+                    stream.close()
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+
+    def __enter__(self) -> Self:
+        self.start()
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.stop()
+
+    # -- state -----------------------------------------------------------------------------------
+
+    @property
+    def process(self) -> subprocess.Popen[bytes]:
+        if self._process is None:
+            raise ChildError(f"{self.name} is not started")
+        return self._process
+
+    @property
+    def started(self) -> bool:
+        return self._process is not None
+
+    @property
+    def pid(self) -> int | None:
+        return None if self._process is None else self._process.pid
+
+    @property
+    def running(self) -> bool:
+        return self._process is not None and self._process.poll() is None
+
+    @property
+    def returncode(self) -> int | None:
+        return None if self._process is None else self._process.poll()
+
+    # -- readiness and the line protocol ---------------------------------------------------------
+
+    def wait_ready(
+        self, ready: Callable[[], bool], *, timeout_s: float, stop: threading.Event | None = None
+    ) -> None:
+        """Wait until ``ready()`` holds; :class:`ChildError` if the child exits first, if
+        ``timeout_s`` passes, or if ``stop`` is set meanwhile."""
+        wait_ready(self.name, ready, children=(self,), timeout_s=timeout_s, stop=stop)
+
+    def send_line(self, line: str) -> None:
+        """Write one line to a ``control`` child's standard input."""
+        stdin = self.process.stdin
+        if stdin is None:
+            raise ChildError(f"{self.name} has no control pipe")
+        stdin.write(line.encode() + b"\n")
+        stdin.flush()
+
+    def read_line(self, timeout_s: float) -> str | None:
+        """The next line of a ``control`` child's standard output, without its end of line;
+        ``None`` if none came within ``timeout_s`` or the output ended."""
+        stdout = self.process.stdout
+        if stdout is None:
+            raise ChildError(f"{self.name} has no control pipe")
+        # One request, one answer line: nothing is ever left in the reader's buffer, so waiting
+        # on the pipe itself is enough.
+        ready, _, _ = select.select([stdout], [], [], timeout_s)
+        line = stdout.readline() if ready else b""
+        return line.decode().rstrip("\n") if line else None
+
+
+def wait_ready(
+    what: str,
+    ready: Callable[[], bool],
+    *,
+    children: Sequence[ChildProcess],
+    timeout_s: float,
+    stop: threading.Event | None = None,
+    log_file: Path | None = None,
+) -> None:
+    """Wait until ``ready()`` holds, while every started one of ``children`` keeps running.
+
+    Raises :class:`ChildError` when one of them exits (naming its log), when ``timeout_s``
+    passes (naming ``log_file``, or the only child's log), or when ``stop`` is set meanwhile.
+    """
+    interrupted = stop or threading.Event()
+    deadline = time.monotonic() + timeout_s
+    hint = log_file or (children[0].log_file if len(children) == 1 else None)
+    while not ready():
+        if interrupted.is_set():
+            raise ChildError(f"interrupted while waiting for the {what}")
+        dead = [child for child in children if child.started and not child.running]
+        if dead:
+            raise ChildError(
+                f"{dead[0].name} exited with {dead[0].returncode} (see {dead[0].log_file})"
+            )
+        if time.monotonic() > deadline:
+            where = f" (see {hint})" if hint is not None else ""
+            raise ChildError(f"{what} not healthy within {timeout_s:.0f} s{where}")
+        interrupted.wait(READY_POLL_S)
 
 
 @contextmanager
@@ -78,6 +304,13 @@ def run_onboard(
 ) -> None:
     """Run one vehicle's onboard in real time × ``speed_factor`` until ``stop`` is set: the VC
     is two boards in 2-out-of-2 by default, recording its datalog at ``vc_datalog`` if given."""
+    # Imported here, not at the top: the supervisor above serves processes (the link proxy's
+    # parent among them) that never run an onboard.
+    from onboard.node import OnboardNode, OnboardSettings
+    from onboard.runtime import RealTimeClock
+    from protocol import open_session
+    from trackdb import TrackMap, load_seed_line
+
     track_map = TrackMap(load_seed_line(line_id))
     if vc_datalog is not None:
         vc_datalog.parent.mkdir(parents=True, exist_ok=True)

@@ -9,37 +9,31 @@ kernel if this process dies without cleaning up (``PR_SET_PDEATHSIG``), so nothi
 
 The admin account comes from ``ATO_ADMIN_USER`` / ``ATO_ADMIN_PASSWORD`` when set; otherwise an
 ``admin`` account with a random password is created, printed, and written to
-``DATA_DIR/admin-password`` (mode 0600). Many machines: see docs/deployment.md.
+``DATA_DIR/admin-password`` (mode 0600). Many machines: see docs/deployment.md. The children are
+supervised by :class:`deploy.processes.ChildProcess`.
 """
 
 from __future__ import annotations
 
-import ctypes
 import os
 import secrets
-import signal
-import socket
-import subprocess
-import sys
 import threading
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO
 
 import httpx
 
 from deploy.ports import free_tcp_port
+from deploy.processes import ChildError, ChildProcess, accepts_connections, ato_command, wait_ready
 
 __all__ = ["UpError", "UpPlan", "Fleet", "run_up"]
 
 HEALTH_TIMEOUT_S = 60.0
 STOP_GRACE_S = 5.0
-_PR_SET_PDEATHSIG = 1
 
 
-class UpError(RuntimeError):
+class UpError(ChildError):
     """A part did not come up."""
 
 
@@ -64,64 +58,18 @@ class UpPlan:
         return [f"URV{i}" for i in range(1, self.vehicles + 1)]
 
 
-def _die_with_parent() -> None:
-    """In the child, before exec: SIGTERM when the parent dies (Linux)."""
-    try:
-        libc = ctypes.CDLL("libc.so.6", use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
-    except OSError:
-        pass
-
-
-@dataclass
-class Part:
-    name: str
-    args: list[str]
-    log_path: Path
-    env: dict[str, str] | None = None
-    process: subprocess.Popen[bytes] | None = None
-    _log: IO[bytes] | None = None
-
-    def start(self) -> None:
-        self.log_path.parent.mkdir(parents=True, exist_ok=True)
-        self._log = open(self.log_path, "ab")  # noqa: SIM115 - closed in stop()
-        self.process = subprocess.Popen(
-            self.args,
-            stdout=self._log,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            env=self.env,
-            preexec_fn=_die_with_parent if sys.platform == "linux" else None,
-        )
-
-    @property
-    def pid(self) -> int | None:
-        return None if self.process is None else self.process.pid
-
-    @property
-    def running(self) -> bool:
-        return self.process is not None and self.process.poll() is None
-
-    def terminate(self) -> None:
-        if self.running:
-            assert self.process is not None
-            self.process.terminate()
-
-    def wait(self, timeout_s: float) -> None:
-        if self.process is None:
-            return
-        try:
-            self.process.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            self.process.wait()
-        if self._log is not None:
-            self._log.close()
-            self._log = None
-
-
-def _ato(*args: str) -> list[str]:
-    return [sys.executable, "-m", "deploy", *args]
+def _part(
+    name: str, args: list[str], log_path: Path, env: dict[str, str] | None = None
+) -> ChildProcess:
+    """One child of the fleet: its output in its log, killed by the kernel if ``ato up`` dies."""
+    return ChildProcess(
+        args,
+        name=name,
+        env=env,
+        log_file=log_path,
+        die_with_parent=True,
+        stop_timeout_s=STOP_GRACE_S,
+    )
 
 
 @dataclass
@@ -132,7 +80,7 @@ class Fleet:
     router_endpoint: str
     url: str
     admin: tuple[str, str]
-    parts: list[Part] = field(default_factory=list)
+    parts: list[ChildProcess] = field(default_factory=list)
     _stop: threading.Event = field(default_factory=threading.Event)
 
     @classmethod
@@ -149,12 +97,12 @@ class Fleet:
         database = plan.database or f"sqlite:///{(plan.data_dir / 'trackside.db').resolve()}"
         fleet = cls(plan, endpoint, f"http://{plan.host}:{port}", (user, password))
         fleet.parts.append(
-            Part("router", _ato("router", "--listen", endpoint), logs / "router.log")
+            _part("router", ato_command("router", "--listen", endpoint), logs / "router.log")
         )
         fleet.parts.append(
-            Part(
+            _part(
                 "trackside",
-                _ato(
+                ato_command(
                     "trackside",
                     "--host",
                     plan.host,
@@ -171,9 +119,9 @@ class Fleet:
         )
         for vehicle in plan.vehicle_ids():
             fleet.parts.append(
-                Part(
+                _part(
                     f"onboard-{vehicle}",
-                    _ato(
+                    ato_command(
                         "onboard",
                         "--vehicle",
                         vehicle,
@@ -193,7 +141,7 @@ class Fleet:
             )
         return fleet
 
-    def part(self, name: str) -> Part:
+    def part(self, name: str) -> ChildProcess:
         for part in self.parts:
             if part.name == name:
                 return part
@@ -221,28 +169,24 @@ class Fleet:
             raise
 
     def _wait(
-        self, what: str, part: Part | None, healthy: Callable[[], bool], timeout_s: float
+        self, what: str, part: ChildProcess | None, healthy: Callable[[], bool], timeout_s: float
     ) -> None:
-        deadline = time.monotonic() + timeout_s
-        while not healthy():
-            if self._stop.is_set():
-                raise UpError(f"interrupted while waiting for the {what}")
-            dead = [p for p in self.parts if p.process is not None and not p.running]
-            if dead:
-                raise UpError(
-                    f"{dead[0].name} exited with {dead[0].process.returncode}"  # type: ignore[union-attr]
-                    f" (see {dead[0].log_path})"
-                )
-            if time.monotonic() > deadline:
-                where = f" (see {part.log_path})" if part is not None else ""
-                raise UpError(f"{what} not healthy within {timeout_s:.0f} s{where}")
-            time.sleep(0.1)
+        """Wait until ``healthy()``, while every started part keeps running."""
+        log_file = part.log_file if part is not None else None
+        try:
+            wait_ready(
+                what,
+                healthy,
+                children=self.parts,
+                timeout_s=timeout_s,
+                stop=self._stop,
+                log_file=log_file,
+            )
+        except ChildError as exc:
+            raise UpError(str(exc)) from exc
 
     def _router_listening(self) -> bool:
-        port = int(self.router_endpoint.rsplit(":", 1)[1])
-        with socket.socket() as probe:
-            probe.settimeout(0.2)
-            return probe.connect_ex(("127.0.0.1", port)) == 0
+        return accepts_connections("127.0.0.1", int(self.router_endpoint.rsplit(":", 1)[1]))
 
     def _trackside_healthy(self) -> bool:
         try:
@@ -282,11 +226,10 @@ class Fleet:
     def stop(self) -> None:
         """Onboards first, then the trackside, then the router."""
         for part in reversed(self.parts):
-            part.terminate()
-            part.wait(STOP_GRACE_S)
+            part.stop()
 
     def table(self) -> list[tuple[str, str, str]]:
-        return [(p.name, str(p.pid), str(p.log_path)) for p in self.parts]
+        return [(p.name, str(p.pid), str(p.log_file)) for p in self.parts]
 
 
 def run_up(plan: UpPlan, stop: threading.Event, *, out: Callable[[str], None] = print) -> int:
@@ -314,13 +257,12 @@ def run_up(plan: UpPlan, stop: threading.Event, *, out: Callable[[str], None] = 
             for part in fleet.parts:
                 if not part.running and part.name not in reported:
                     reported.add(part.name)
-                    code = part.process.returncode if part.process else None
-                    out(f"ato up: {part.name} exited ({code}); see {part.log_path}")
+                    out(f"ato up: {part.name} exited ({part.returncode}); see {part.log_file}")
     finally:
         out("ato up: stopping")
         fleet.stop()
     return 0
 
 
-def running_pids(parts: Sequence[Part]) -> list[int]:
+def running_pids(parts: Sequence[ChildProcess]) -> list[int]:
     return [p.pid for p in parts if p.running and p.pid is not None]

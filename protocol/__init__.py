@@ -31,7 +31,7 @@ from protocol.bus import (
     request,
     request_async,
 )
-from protocol.registry import TOPICS, Delivery, Direction, Topic
+from protocol.registry import TOPICS, Delivery, Direction, QueryTopic, RegistryTopic, Topic
 from protocol.zenoh_config import (
     DEFAULT_ROUTER_ENDPOINT,
     ZenohSettings,
@@ -52,6 +52,8 @@ __all__ = [
     "MalformedDatagramError",
     "PayloadError",
     "ProtocolError",
+    "QueryTopic",
+    "RegistryTopic",
     "RequestTimeoutError",
     "Topic",
     "TopicMonitor",

@@ -1,9 +1,11 @@
 """Typed publish/subscribe, query/reply and liveliness on top of zenoh-python.
 
 Each helper is bound to a :class:`~protocol.registry.Topic`, so it encodes and decodes with the
-topic's model and follows its delivery. A receiver never raises on bad input: it counts the
-payload in :class:`TopicStats`, logs it and drops it. :class:`TopicMonitor` derives per-key
-``alive`` and ``rate_ok`` from the topic's expected rate (openpilot's ``SubMaster`` idea).
+topic's model and follows its delivery; the query helpers to a
+:class:`~protocol.registry.QueryTopic`, so that a reply has its model's type. A receiver never
+raises on bad input: it counts the payload in :class:`TopicStats`, logs it and drops it.
+:class:`TopicMonitor` derives per-key ``alive`` and ``rate_ok`` from the topic's expected rate
+(openpilot's ``SubMaster`` idea).
 
 Zenoh calls the receive callbacks on its own threads; the shared state here is guarded by a lock
 and exposed through copies.
@@ -17,7 +19,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Generic, Self, TypeVar
+from typing import Generic, Self, TypeVar
 
 import zenoh
 
@@ -27,7 +29,7 @@ from protocol._exceptions import (
     RequestTimeoutError,
     TransportError,
 )
-from protocol.registry import Delivery, Topic
+from protocol.registry import Delivery, QueryTopic, Topic
 
 __all__ = [
     "LivelinessWatcher",
@@ -42,6 +44,8 @@ __all__ = [
 ]
 
 T = TypeVar("T")
+Request = TypeVar("Request")
+Reply = TypeVar("Reply")
 TimeSource = Callable[[], float]
 
 _log = logging.getLogger(__name__)
@@ -266,26 +270,32 @@ class TypedSubscriber(Generic[T]):
         self.close()
 
 
-class TypedQueryable(Generic[T]):
+class TypedQueryable(Generic[Request]):
     """Answers one query topic with ``handler(chunks, request) -> reply`` on Zenoh's thread.
 
     A request that fails validation is answered with an error reply and counted; so is a handler
-    that raises a :class:`ProtocolError` or ``ValueError``.
+    that raises a :class:`ProtocolError` or ``ValueError``. The class is generic in the request
+    alone (``TypedQueryable[m.Command]``): the handler's reply type is tied to the topic's when
+    the queryable is built, and nothing afterwards hands a reply out.
     """
 
     def __init__(
         self,
         session: zenoh.Session,
-        topic: Topic[T],
-        handler: Callable[[dict[str, str], T], Any],
+        topic: QueryTopic[Request, Reply],
+        handler: Callable[[dict[str, str], Request], Reply],
         **chunks: str,
     ) -> None:
-        if topic.delivery is not Delivery.QUERY:
+        if not isinstance(topic, QueryTopic):
             raise ProtocolError(f"{topic.name} is not a query topic")
-        self.topic = topic
+        self.topic: Topic[Request] = topic
+
+        def answer(parsed: dict[str, str], request: Request) -> bytes:
+            return topic.encode_reply(handler(parsed, request))
+
         self.key_expr = topic.wildcard(**chunks)
         self.stats = TopicStats()
-        self._handler = handler
+        self._answer = answer
         self._lock = threading.Lock()
         try:
             self._queryable = session.declare_queryable(self.key_expr, self._on_query)
@@ -300,8 +310,7 @@ class TypedQueryable(Generic[T]):
             if payload is None:
                 raise PayloadError(f"{self.topic.name}: empty request")
             request_message = self.topic.decode(payload.to_bytes())
-            reply = self._handler(chunks, request_message)
-            encoded = self.topic.encode_reply(reply)
+            encoded = self._answer(chunks, request_message)
         except (ProtocolError, ValueError) as exc:
             with self._lock:
                 self.stats.bad_payloads += 1
@@ -332,12 +341,12 @@ class TypedQueryable(Generic[T]):
 
 def request(
     session: zenoh.Session,
-    topic: Topic[T],
-    message: T,
+    topic: QueryTopic[Request, Reply],
+    message: Request,
     *,
     timeout_s: float = 2.0,
     **chunks: str,
-) -> Any:
+) -> Reply:
     """Send a query and return the first valid reply decoded with the topic's reply model.
 
     Raises :class:`RequestTimeoutError` when nobody answers in time, and :class:`PayloadError`
@@ -359,9 +368,9 @@ def request(
 
 def request_async(
     session: zenoh.Session,
-    topic: Topic[T],
-    message: T,
-    on_reply: Callable[[Any], None],
+    topic: QueryTopic[Request, Reply],
+    message: Request,
+    on_reply: Callable[[Reply], None],
     *,
     timeout_s: float = 2.0,
     **chunks: str,

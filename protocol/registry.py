@@ -12,6 +12,7 @@ Deliveries:
 - ``FIFO``: every message matters, in order (events, journey profiles); senders block under
   congestion and receivers queue.
 - ``QUERY``: a request answered by a reply (commands, session handshake), delivered reliably.
+  Such a topic is a :class:`QueryTopic`, typed by its request and its reply.
 """
 
 from __future__ import annotations
@@ -19,12 +20,17 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 from enum import StrEnum
-from typing import Any, Generic, TypeVar
+from typing import TYPE_CHECKING, Generic, TypeAlias, TypeVar
 
 from pydantic import TypeAdapter, ValidationError
 
 from protocol import messages as m
 from protocol._exceptions import KeyExpressionError, PayloadError
+
+if TYPE_CHECKING:
+    # For the type checker only: the annotations are strings at run time (PEP 563), and the
+    # pinned pydantic does not guarantee a typing_extensions recent enough to have TypeForm.
+    from typing_extensions import TypeForm
 
 __all__ = [
     "ALIVE_ONBOARD",
@@ -45,11 +51,14 @@ __all__ = [
     "TOPICS",
     "Delivery",
     "Direction",
+    "QueryTopic",
+    "RegistryTopic",
     "Topic",
 ]
 
 T = TypeVar("T")
-R = TypeVar("R")
+Request = TypeVar("Request")
+Reply = TypeVar("Reply")
 
 _PLACEHOLDER = re.compile(r"\{([a-z_]+)\}")
 _CHUNK = r"([A-Za-z0-9_-]+)"
@@ -74,7 +83,7 @@ def _alternate(parts: list[str]) -> list[tuple[bool, str]]:
 
 @dataclass(frozen=True)
 class Topic(Generic[T]):
-    """One entry of the key-space registry.
+    """One entry of the key-space registry: a published topic (``LATEST`` or ``FIFO``).
 
     Parameters
     ----------
@@ -83,32 +92,28 @@ class Topic(Generic[T]):
     key_template
         Key expression with ``{chunk}`` markers for its variable chunks.
     payload_type
-        Model (or annotated union) of the payload; of the request for ``QUERY`` topics.
+        Model (or annotated union) of the payload; of the request for a :class:`QueryTopic`.
     direction
         Which side publishes (or queries).
     delivery
-        Latest value, reliable FIFO, or query/reply.
+        Latest value, reliable FIFO, or query/reply (the last for a :class:`QueryTopic` only).
     rate_hz
         Expected publication rate [Hz]; ``None`` for sporadic topics.
-    reply_type
-        Model of the reply for ``QUERY`` topics.
     """
 
     name: str
     key_template: str
-    payload_type: Any
+    payload_type: TypeForm[T]
     direction: Direction
     delivery: Delivery
     rate_hz: float | None = None
-    reply_type: Any = None
     _adapter: TypeAdapter[T] = field(init=False, repr=False, compare=False)
-    _reply_adapter: TypeAdapter[Any] | None = field(init=False, repr=False, compare=False)
     _pattern: re.Pattern[str] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        if (self.delivery is Delivery.QUERY) != isinstance(self, QueryTopic):
+            raise TypeError(f"{self.name}: a QUERY topic is a QueryTopic, and only it is")
         object.__setattr__(self, "_adapter", TypeAdapter(self.payload_type))
-        reply = TypeAdapter(self.reply_type) if self.reply_type is not None else None
-        object.__setattr__(self, "_reply_adapter", reply)
         parts = _PLACEHOLDER.split(self.key_template)
         regex = "".join(_CHUNK if odd else re.escape(part) for odd, part in _alternate(parts))
         object.__setattr__(self, "_pattern", re.compile(f"^{regex}$"))
@@ -153,14 +158,27 @@ class Topic(Generic[T]):
         except ValidationError as exc:
             raise PayloadError(f"{self.name}: {exc.error_count()} error(s): {exc}") from exc
 
-    def encode_reply(self, reply: Any) -> bytes:
-        if self._reply_adapter is None:
-            raise KeyExpressionError(f"{self.name} is not a query topic")
+
+@dataclass(frozen=True)
+class QueryTopic(Topic[Request], Generic[Request, Reply]):
+    """A registry entry delivered as a query: a ``Request`` answered by a ``Reply``.
+
+    ``payload_type`` is the request's model; ``reply_type`` (keyword-only) the reply's. The two
+    type parameters carry through :func:`protocol.bus.request`, :func:`protocol.bus.request_async`
+    and :class:`protocol.bus.TypedQueryable`, so that a caller gets the reply's own model.
+    """
+
+    reply_type: TypeForm[Reply] = field(kw_only=True)
+    _reply_adapter: TypeAdapter[Reply] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        object.__setattr__(self, "_reply_adapter", TypeAdapter(self.reply_type))
+
+    def encode_reply(self, reply: Reply) -> bytes:
         return self._reply_adapter.dump_json(reply)
 
-    def decode_reply(self, payload: bytes) -> Any:
-        if self._reply_adapter is None:
-            raise KeyExpressionError(f"{self.name} is not a query topic")
+    def decode_reply(self, payload: bytes) -> Reply:
         try:
             return self._reply_adapter.validate_json(payload)
         except ValidationError as exc:
@@ -182,7 +200,7 @@ EVENT: Topic[m.Event] = Topic(
     Direction.ONBOARD_TO_TRACKSIDE,
     Delivery.FIFO,
 )
-COMMAND: Topic[m.Command] = Topic(
+COMMAND: QueryTopic[m.Command, m.CommandAck] = QueryTopic(
     "command",
     "ato/ob/{vehicle}/command",
     m.Command,
@@ -204,7 +222,7 @@ JOURNEY_PROFILE_ACK: Topic[m.JourneyProfileAck] = Topic(
     Direction.ONBOARD_TO_TRACKSIDE,
     Delivery.FIFO,
 )
-LINE_VERSION: Topic[m.LineVersionRequest] = Topic(
+LINE_VERSION: QueryTopic[m.LineVersionRequest, m.LineVersionReply] = QueryTopic(
     "line_version",
     "ato/ts/line/{line}/version",
     m.LineVersionRequest,
@@ -212,7 +230,7 @@ LINE_VERSION: Topic[m.LineVersionRequest] = Topic(
     Delivery.QUERY,
     reply_type=m.LineVersionReply,
 )
-SESSION: Topic[m.SessionRequest] = Topic(
+SESSION: QueryTopic[m.SessionRequest, m.SessionResponse] = QueryTopic(
     "session",
     "ato/ts/session/{vehicle}",
     m.SessionRequest,
@@ -248,13 +266,15 @@ SPEED_RESTRICTION: Topic[m.SpeedRestrictionMessage] = Topic(
     Direction.TRACKSIDE_TO_ONBOARD,
     Delivery.FIFO,
 )
-MOVEMENT_AUTHORITY_CURRENT: Topic[m.MovementAuthorityRequest] = Topic(
-    "movement_authority_current",
-    "ato/ts/rbc/{vehicle}/current_ma",
-    m.MovementAuthorityRequest,
-    Direction.ONBOARD_TO_TRACKSIDE,
-    Delivery.QUERY,
-    reply_type=m.MovementAuthorityReply,
+MOVEMENT_AUTHORITY_CURRENT: QueryTopic[m.MovementAuthorityRequest, m.MovementAuthorityReply] = (
+    QueryTopic(
+        "movement_authority_current",
+        "ato/ts/rbc/{vehicle}/current_ma",
+        m.MovementAuthorityRequest,
+        Direction.ONBOARD_TO_TRACKSIDE,
+        Delivery.QUERY,
+        reply_type=m.MovementAuthorityReply,
+    )
 )
 MOVEMENT_AUTHORITY_ACK: Topic[m.MovementAuthorityAck] = Topic(
     "movement_authority_ack",
@@ -269,7 +289,26 @@ ALIVE_ONBOARD = "ato/alive/ob/{vehicle}"
 ALIVE_TRACKSIDE = "ato/alive/ts/{instance}"
 """Liveliness token of a trackside instance (CONTRACT.md §5)."""
 
-TOPICS: tuple[Topic[Any], ...] = (
+RegistryTopic: TypeAlias = (
+    Topic[m.StatusReport]
+    | Topic[m.Event]
+    | QueryTopic[m.Command, m.CommandAck]
+    | Topic[m.JourneyProfile]
+    | Topic[m.JourneyProfileAck]
+    | QueryTopic[m.LineVersionRequest, m.LineVersionReply]
+    | QueryTopic[m.SessionRequest, m.SessionResponse]
+    | Topic[m.StatusAck]
+    | Topic[m.SessionTermination]
+    | Topic[m.MovementAuthorityMessage]
+    | QueryTopic[m.MovementAuthorityRequest, m.MovementAuthorityReply]
+    | Topic[m.MovementAuthorityAck]
+    | Topic[m.SpeedRestrictionMessage]
+)
+"""One topic of the table, whichever: what iterating :data:`TOPICS` gives. A union of the
+entries' own types, so that decoding with an entry not known in advance still gives one of the
+payload models (and encoding needs a message every entry takes, which none is)."""
+
+TOPICS: tuple[RegistryTopic, ...] = (
     STATUS,
     EVENT,
     COMMAND,

@@ -77,12 +77,14 @@ def test_package_all_reexports_public_names_of_private_modules(package: str) -> 
 
 
 # One home for the physical constants (docs/decisions.md, "One home for the vehicle's data and
-# the physical constants"): protocol.units holds GRAVITY_MPS2 and MPS_PER_KMH; onboard imports.
+# the physical constants"): protocol.units holds GRAVITY_MPS2, MPS_PER_KMH and J_PER_KWH; every
+# other module imports them.
 CONVERSION_NAMES = frozenset(
     {
         "GRAVITY",
         "GRAVITY_MPS2",
         "G_MPS2",
+        "J_PER_KWH",
         "KMH",
         "KMH_PER_MPS",
         "MPS_PER_KMH",
@@ -90,7 +92,8 @@ CONVERSION_NAMES = frozenset(
         "KMH_TO_MPS",
     }
 )
-CONSTANT_VALUES = (9.81, 9.80665, 3.6, 1.0 / 3.6)
+CONSTANT_VALUES = (9.81, 9.80665, 3.6, 1.0 / 3.6, 3.6e6)
+UNITS_HOME = ROOT / "protocol" / "units.py"
 
 
 def _literal_value(node: ast.expr) -> float | None:
@@ -126,13 +129,46 @@ def _own_constants(path: Path) -> list[str]:
     return found
 
 
-def test_onboard_defines_no_gravity_or_kmh_constant_of_its_own() -> None:
+def _inline_constants(path: Path) -> list[int]:
+    """Lines of ``path`` that write gravity or a unit factor as a number in an expression."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    return [
+        node.lineno
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Constant)
+        and isinstance(node.value, int | float)
+        and not isinstance(node.value, bool)
+        and any(math.isclose(float(node.value), c, rel_tol=1e-12) for c in CONSTANT_VALUES)
+    ]
+
+
+def _package_modules() -> list[Path]:
+    paths = (path for package in PACKAGES for path in sorted((ROOT / package).rglob("*.py")))
+    return [path for path in paths if path != UNITS_HOME]
+
+
+def test_no_package_defines_a_gravity_or_unit_constant_of_its_own() -> None:
     offenders = [
         f"{path.relative_to(ROOT)}: {name}"
-        for path in sorted((ROOT / "onboard").rglob("*.py"))
+        for path in _package_modules()
         for name in _own_constants(path)
     ]
     assert offenders == []
+
+
+def test_no_package_writes_gravity_or_a_unit_factor_inline() -> None:
+    offenders = [
+        f"{path.relative_to(ROOT)}:{line}"
+        for path in _package_modules()
+        for line in _inline_constants(path)
+    ]
+    assert offenders == []
+
+
+def test_the_inline_rule_catches_a_literal(tmp_path: Path) -> None:
+    sample = tmp_path / "x.py"
+    sample.write_text("e_kwh = e_j / 3.6e6\nv = (0.0, -9.81)\nt_s = 3.5\nok = True\n")
+    assert _inline_constants(sample) == [1, 2]
 
 
 def test_the_constant_rule_catches_a_copy(tmp_path: Path) -> None:
@@ -146,13 +182,15 @@ def test_the_constant_rule_catches_a_copy(tmp_path: Path) -> None:
 
 
 def test_units_have_one_home() -> None:
+    import onboard.etcs
     from onboard.etcs import values as etcs_values
     from onboard.plant import point_mass
     from protocol import units
     from trackdb import journey, vehicle
 
     assert point_mass.GRAVITY_MPS2 is units.GRAVITY_MPS2
-    assert etcs_values.KMH is units.MPS_PER_KMH
+    assert not hasattr(etcs_values, "KMH")  # one name per conversion: units.MPS_PER_KMH
+    assert "KMH" not in onboard.etcs.__all__
     assert point_mass.URV_PARAMETERS is vehicle.URV_PARAMETERS
     assert journey.URV_LIMITS.mass_kg == vehicle.URV_PARAMETERS.mass_kg
     assert journey.URV_LIMITS.max_traction_power_w == vehicle.URV_PARAMETERS.max_traction_power_w

@@ -24,13 +24,14 @@ from deploy.bench.adf_closed_loop import (
     run_handover_sequence,
 )
 from deploy.bench.adf_plots import write_handover_plot
+from deploy.stats import percentiles
 from onboard.adf.energy import optimal_leg, plan_traction_energy_j
 from onboard.adf.nmpc import NmpcConfig, NmpcController
 from onboard.adf.odp import plan_legs
 from onboard.adf.odp_energy import plan_energy_legs
 from onboard.plant import URV_PARAMETERS
 from onboard.plant.point_mass import with_model_mismatch
-from protocol.units import MPS_PER_KMH
+from protocol.units import J_PER_KWH, MPS_PER_KMH
 from trackdb import TrackMap, load_seed_line
 
 __all__ = ["bench_adf", "energy_comparison", "field_test_lap", "handover"]
@@ -124,9 +125,9 @@ def energy_comparison(console: Console) -> dict[str, dict[str, float]]:
         results[name] = {"lspb_j": plain, "ours_j": ours, "optimum_j": best, "kept": kept}
         table.add_row(
             name,
-            f"{plain / 3.6e6:.3f}",
-            f"{ours / 3.6e6:.3f}",
-            f"{best / 3.6e6:.3f}",
+            f"{plain / J_PER_KWH:.3f}",
+            f"{ours / J_PER_KWH:.3f}",
+            f"{best / J_PER_KWH:.3f}",
             f"{100 * (ours / plain - 1):+.1f} %",
             f"{100 * (ours / best - 1):+.1f} %",
             str(kept),
@@ -175,17 +176,18 @@ def bench_adf(*, plots_dir: Path | None = None) -> dict[str, dict[str, float]]:
             for i, (_, arrival, _) in enumerate(FIELD_TEST_STOPS)
             if i in record.arrivals
         ]
+        median_ms, p99_ms = percentiles(times_ms, (50, 99))
         results[name] = {
             "solves": float(record.nmpc.solves),
             "failures": float(record.nmpc.failures),
-            "median_ms": float(np.median(times_ms)),
-            "p99_ms": float(np.percentile(times_ms, 99)),
+            "median_ms": median_ms,
+            "p99_ms": p99_ms,
             "max_ms": float(times_ms.max()),
             "speed_rms_kmh": float(np.sqrt(np.mean(error**2))) / MPS_PER_KMH,
             "max_stop_error_m": max(stop_errors) if stop_errors else float("nan"),
             "stops": float(len(record.arrivals)),
             "max_arrival_error_s": max(lateness) if lateness else float("nan"),
-            "traction_energy_kwh": record.traction_energy_j / 3.6e6,
+            "traction_energy_kwh": record.traction_energy_j / J_PER_KWH,
             "wall_s": wall_s,
         }
     table = Table(title="NMPC on the field-test lap (N = 50, dt = 0.2 s: a 10 s horizon)")

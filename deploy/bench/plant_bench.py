@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 import random
-import statistics
 import time
 from pathlib import Path
 
@@ -21,11 +20,12 @@ from rich.console import Console
 from rich.table import Table
 
 from deploy.bench.trackdb_bench import time_calls
+from deploy.stats import percentiles
 from onboard.plant.bogie import DEFAULT_SUBSTEP_S, BogieModel
 from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS, BogieParameters
 from onboard.plant.interfaces import ActuatorCommands
 from onboard.plant.point_mass import URV_PARAMETERS, PointMassModel
-from protocol.units import MPS_PER_KMH
+from protocol.units import J_PER_KWH, MPS_PER_KMH
 
 __all__ = [
     "MISSION_DISTANCE_KM",
@@ -99,7 +99,7 @@ def _run_mission(distance_km: float, max_speed_kmh: float) -> dict[str, float]:
         "real_time_factor": truth.time_s / wall_s,
         "distance_km": truth.position_m / 1000.0,
         "top_speed_kmh": top_mps / MPS_PER_KMH,
-        "traction_energy_kwh": truth.traction_energy_j / 3.6e6,
+        "traction_energy_kwh": truth.traction_energy_j / J_PER_KWH,
     }
 
 
@@ -111,13 +111,9 @@ def _time_point_mass(steps: int, seed: int) -> dict[str, float]:
     def step(force_n: float) -> None:
         model.step(PLANT_STEP_S, force_n, gradient_permille=2.0)
 
-    ordered = sorted(time_calls(step, demands_n))
-    p99_index = min(len(ordered) - 1, round(0.99 * (len(ordered) - 1)))
-    return {
-        "count": float(len(ordered)),
-        "median_us": statistics.median(ordered) / 1e3,
-        "p99_us": ordered[p99_index] / 1e3,
-    }
+    samples_ns = time_calls(step, demands_n)
+    median_ns, p99_ns = percentiles(samples_ns, (50, 99))
+    return {"count": float(len(samples_ns)), "median_us": median_ns / 1e3, "p99_us": p99_ns / 1e3}
 
 
 def _verdict(ok: bool) -> str:

@@ -28,10 +28,12 @@ from rich.table import Table
 
 from deploy.bench.sfa_drive import DriveSettings
 from deploy.bench.sfa_lockstep import run_lockstep
+from deploy.stats import percentiles
 from onboard.plant.sensors import SensorFaults, TimeWindow
 from onboard.sfa import LinkFaults, ListenerConfig, ListenerCore
 from onboard.sfa.sockets import ListenerRunner
 from protocol.udp import SEQ_MODULO, InputPacket, SensorType, encode_input
+from protocol.units import GRAVITY_MPS2
 from trackdb import TrackMap, load_seed_line
 
 __all__ = [
@@ -169,7 +171,7 @@ _FUZZ_TYPES = (1, 2, 3, 8, 9, 10)
 _FUZZ_WEIGHTS = (0.45, 0.15, 0.1, 0.08, 0.2, 0.02)
 _FUZZ_COUNTS = {1: 6, 2: 2, 3: 3, 8: 4, 9: 1, 10: 0}
 _FUZZ_CENTRES = {
-    1: (0.0, 0.0, -9.81, 0.0, 0.0, 0.0),
+    1: (0.0, 0.0, -GRAVITY_MPS2, 0.0, 0.0, 0.0),
     2: (20.0, 0.05),
     3: (44.515, 11.32, 42.0),
     8: (10.0, 0.0, 0.0, 1.0),
@@ -280,7 +282,9 @@ def imu_cost_us(count: int) -> tuple[float, float]:
     datagrams = [
         encode_input(
             InputPacket(
-                SensorType.IMU, (index + 1) % SEQ_MODULO, (float(a), 0.0, -9.81, 0.0, 0.0, 0.0)
+                SensorType.IMU,
+                (index + 1) % SEQ_MODULO,
+                (float(a), 0.0, -GRAVITY_MPS2, 0.0, 0.0, 0.0),
             )
         )
         for index, a in enumerate(accelerations)
@@ -291,7 +295,8 @@ def imu_cost_us(count: int) -> tuple[float, float]:
         started = clock()
         core.feed(datagram, index * 0.01)
         samples[index] = clock() - started
-    return float(np.median(samples)) / 1e3, float(np.percentile(samples, 99)) / 1e3
+    median_ns, p99_ns = percentiles(samples, (50, 99))
+    return median_ns / 1e3, p99_ns / 1e3
 
 
 def _send_datagrams(datagrams: list[bytes], address: tuple[str, int]) -> None:

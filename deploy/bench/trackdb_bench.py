@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import gc
 import random
-import statistics
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -21,6 +20,7 @@ from typing import Any
 from rich.console import Console
 from rich.table import Table
 
+from deploy.stats import percentiles
 from trackdb import TrackMap, load_seed_line
 from trackdb.builder import enu_to_geodetic, geodetic_to_enu
 
@@ -134,13 +134,12 @@ def _cases(track: TrackMap, count: int, rng: random.Random) -> list[_Case]:
 
 
 def _figures(samples_ns: list[int]) -> dict[str, float]:
-    ordered = sorted(samples_ns)
-    p99_index = min(len(ordered) - 1, round(0.99 * (len(ordered) - 1)))
+    median_ns, p99_ns, max_ns = percentiles(samples_ns, (50, 99, 100))
     return {
-        "count": float(len(ordered)),
-        "median_us": statistics.median(ordered) / 1e3,
-        "p99_us": ordered[p99_index] / 1e3,
-        "max_us": ordered[-1] / 1e3,
+        "count": float(len(samples_ns)),
+        "median_us": median_ns / 1e3,
+        "p99_us": p99_ns / 1e3,
+        "max_us": max_ns / 1e3,
     }
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import multiprocessing
-import statistics
 import tempfile
 import threading
 import time
@@ -24,6 +23,7 @@ from rich.console import Console
 from rich.table import Table
 
 from deploy.ports import free_tcp_port, loopback_endpoint
+from deploy.stats import percentiles
 from protocol import (
     TypedPublisher,
     TypedQueryable,
@@ -117,14 +117,8 @@ def fleet_process(endpoint: str, vehicles: int, seconds: float, ready: Any) -> N
 def _percentiles(samples: list[float]) -> dict[str, float]:
     if not samples:
         return {"p50": float("nan"), "p99": float("nan"), "max": float("nan"), "n": 0.0}
-    ordered = sorted(samples)
-    p99 = ordered[min(len(ordered) - 1, round(0.99 * (len(ordered) - 1)))]
-    return {
-        "p50": statistics.median(ordered),
-        "p99": p99,
-        "max": ordered[-1],
-        "n": float(len(ordered)),
-    }
+    p50, p99, top = percentiles(samples, (50, 99, 100))
+    return {"p50": p50, "p99": p99, "max": top, "n": float(len(samples))}
 
 
 def _rest_worker(

@@ -23,6 +23,7 @@ from rich.console import Console
 from rich.table import Table
 
 from deploy.bench.vc_responder import AtoObResponder
+from deploy.stats import percentiles
 from onboard.runtime import Clock, Executive, RealTimeClock, SimClock
 from onboard.runtime.clock import NS_PER_S
 from onboard.runtime.executive import StepFunction
@@ -48,11 +49,9 @@ class TaskTiming:
         return len(self.execution_ns)
 
 
-def _percentile(samples: list[int], fraction: float) -> float:
-    ordered = sorted(samples)
-    if not ordered:
-        return 0.0
-    return float(ordered[min(len(ordered) - 1, round(fraction * (len(ordered) - 1)))])
+def _median_p99_max(samples_ns: list[int]) -> tuple[float, ...]:
+    """Median, p99 and maximum [ns]; zeros for a task that never ran."""
+    return percentiles(samples_ns, (50, 99, 100)) if samples_ns else (0.0, 0.0, 0.0)
 
 
 class _StandingTrain:
@@ -113,10 +112,8 @@ def _table(title: str, timings: dict[str, TaskTiming], *, lateness: bool) -> Tab
     for column in columns:
         table.add_column(column, justify="left" if column == "task" else "right")
     for name, timing in timings.items():
-        samples = [timing.execution_ns] * 3 + ([timing.lateness_ns] * 3 if lateness else [])
-        fractions = (0.5, 0.99, 1.0) * (2 if lateness else 1)
-        pairs = zip(samples, fractions, strict=True)
-        values = [_percentile(sample, fraction) for sample, fraction in pairs]
+        samples = [timing.execution_ns] + ([timing.lateness_ns] if lateness else [])
+        values = [value for sample in samples for value in _median_p99_max(sample)]
         row = [name, str(timing.runs), *(f"{value / 1e3:.1f} µs" for value in values)]
         if lateness:
             row.append(str(timing.deadline_misses))

@@ -10,7 +10,6 @@ validated acknowledgement, with the real :class:`~onboard.node.OnboardNode` answ
 
 from __future__ import annotations
 
-import statistics
 import threading
 import time
 from collections.abc import Iterator
@@ -21,7 +20,8 @@ from rich.console import Console
 from rich.table import Table
 
 from deploy.ports import loopback_endpoint
-from deploy.processes import ato_command, child_process
+from deploy.processes import ChildProcess, ato_command
+from deploy.stats import percentiles
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import SimClock
 from protocol import (
@@ -121,18 +121,13 @@ def _in_process_router(count: int, warmup: int) -> list[float]:
 def _across_processes(count: int, warmup: int) -> list[float]:
     endpoint = loopback_endpoint()
     with ExitStack() as stack:
-        stack.enter_context(child_process(ato_command("router", "--listen", endpoint)))
+        stack.enter_context(ChildProcess(ato_command("router", "--listen", endpoint)))
         stack.enter_context(
-            child_process(ato_command("onboard", "--vehicle", VEHICLE, "--zenoh", endpoint))
+            ChildProcess(ato_command("onboard", "--vehicle", VEHICLE, "--zenoh", endpoint))
         )
         trackside = stack.enter_context(open_session(ZenohSettings(connect=(endpoint,))))
         _wait_alive(trackside, 30.0)
         return measure_round_trips(trackside, count=count, warmup=warmup)
-
-
-def _percentile(sorted_samples: list[float], fraction: float) -> float:
-    index = min(len(sorted_samples) - 1, max(0, round(fraction * (len(sorted_samples) - 1))))
-    return sorted_samples[index]
 
 
 def bench_zenoh(*, count: int, warmup: int) -> dict[str, dict[str, float]]:
@@ -146,11 +141,12 @@ def bench_zenoh(*, count: int, warmup: int) -> dict[str, dict[str, float]]:
     }
     for name, run in cases.items():
         console.print(f"measuring {name} ({count} commands)…")
-        samples = sorted(run(count, warmup))
+        samples = run(count, warmup)
+        median_s, p99_s, max_s = percentiles(samples, (50, 99, 100))
         results[name] = {
-            "median_ms": statistics.median(samples) * 1e3,
-            "p99_ms": _percentile(samples, 0.99) * 1e3,
-            "max_ms": samples[-1] * 1e3,
+            "median_ms": median_s * 1e3,
+            "p99_ms": p99_s * 1e3,
+            "max_ms": max_s * 1e3,
             "count": float(len(samples)),
         }
     table = Table(title="trackside→onboard command round trip (ping → CommandAck)")

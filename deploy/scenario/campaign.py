@@ -32,6 +32,7 @@ import numpy as np
 from deploy.scenario.loader import load_scenario
 from deploy.scenario.runner import RunOptions, run_scenario
 from deploy.scenario.schema import ScenarioSpec
+from deploy.stats import percentiles
 from onboard.etcs import dv_ebi_mps
 from protocol.units import MPS_PER_KMH
 
@@ -266,11 +267,8 @@ def distribution(values: list[float]) -> dict[str, float] | None:
     finite = np.asarray([v for v in values if math.isfinite(v)])
     if finite.size == 0:
         return None
-    return {
-        "median": float(np.median(finite)),
-        "p99": float(np.percentile(finite, 99)),
-        "max": float(finite.max()),
-    }
+    median, p99 = percentiles(finite, (50, 99))
+    return {"median": median, "p99": p99, "max": float(finite.max())}
 
 
 def summarise(results: Sequence[CellResult]) -> dict[str, Any]:

@@ -17,7 +17,8 @@ from typing import Any
 import numpy as np
 
 from deploy.scenario.schema import Expectation
-from protocol.units import MPS_PER_KMH
+from deploy.stats import percentiles
+from protocol.units import J_PER_KWH, MPS_PER_KMH
 
 __all__ = [
     "JERK_MIN_SPEED_MPS",
@@ -28,7 +29,6 @@ __all__ = [
     "odometry_interval_kpi",
 ]
 
-J_PER_KWH = 3.6e6
 JERK_MIN_SPEED_MPS = 0.2
 """Jerk is measured while moving (the instant of stopping excluded), as the ADF's tests do."""
 
@@ -90,11 +90,8 @@ def _percentiles_ms(samples: Sequence[float]) -> dict[str, float] | None:
     if not samples:
         return None
     values = np.asarray(samples) * 1000.0
-    return {
-        "p50": float(np.percentile(values, 50)),
-        "p99": float(np.percentile(values, 99)),
-        "max": float(values.max()),
-    }
+    p50, p99 = percentiles(values, (50, 99))
+    return {"p50": p50, "p99": p99, "max": float(values.max())}
 
 
 def compute_kpis(

@@ -83,7 +83,7 @@ class LockstepOperator:
             issued_by=self.name,
             body=body,
         )
-        ack: m.CommandAck = request(
+        ack = request(
             self.session,
             COMMAND,
             command,

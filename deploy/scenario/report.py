@@ -23,7 +23,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from protocol.units import MPS_PER_KMH
+from protocol.units import J_PER_KWH, MPS_PER_KMH
 
 __all__ = ["render_report"]
 
@@ -65,7 +65,7 @@ def _position_figure(c: Mapping[str, np.ndarray]) -> Figure:
     position.plot(t, c["position_m"] / 1000.0)
     position.set_ylabel("km")
     position.set_title("Position")
-    energy.plot(t, c["traction_energy_j"] / 3.6e6, label="traction energy [kWh]")
+    energy.plot(t, c["traction_energy_j"] / J_PER_KWH, label="traction energy [kWh]")
     if np.isfinite(c["soc"]).any():
         soc = energy.twinx()
         soc.plot(t, c["soc"] * 100.0, color="tab:green", label="SOC [%]")

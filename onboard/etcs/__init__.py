@@ -87,7 +87,6 @@ from onboard.etcs.output import EtcsOutput
 from onboard.etcs.supervision import BrakeCommands, Monitoring, SupervisionResult
 from onboard.etcs.values import (
     FIXED_VALUES,
-    KMH,
     NATIONAL_DEFAULTS,
     URV_TRAIN_DATA,
     BrakeModelType,
@@ -98,7 +97,6 @@ from onboard.etcs.values import (
 
 __all__ = [
     "FIXED_VALUES",
-    "KMH",
     "MODE_TRANSITIONS",
     "NATIONAL_DEFAULTS",
     "STANDSTILL_SPEED_MPS",

@@ -45,7 +45,6 @@ from onboard.etcs.deceleration import (
 )
 from onboard.etcs.values import (
     FIXED_VALUES,
-    KMH,
     NATIONAL_DEFAULTS,
     URV_TRAIN_DATA,
     BrakeModelType,
@@ -53,6 +52,7 @@ from onboard.etcs.values import (
     NationalValues,
     TrainData,
 )
+from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap
 
 __all__ = [
@@ -120,8 +120,8 @@ def dv_warning_mps(v_mrsp_mps: float, fixed: FixedValues = FIXED_VALUES) -> floa
     )
 
 
-_URA_MIN_MPS, _URA_MAX_MPS = 2.0 * KMH, 12.0 * KMH
-_URA_FROM_MPS, _URA_TO_MPS = 30.0 * KMH, 500.0 * KMH
+_URA_MIN_MPS, _URA_MAX_MPS = 2.0 * MPS_PER_KMH, 12.0 * MPS_PER_KMH
+_URA_FROM_MPS, _URA_TO_MPS = 30.0 * MPS_PER_KMH, 500.0 * MPS_PER_KMH
 _URA_SLOPE = (_URA_MAX_MPS - _URA_MIN_MPS) / (_URA_TO_MPS - _URA_FROM_MPS)
 """V_ura's line, computed as :func:`ceiling_margin_mps` computes it (same operations, same bits)."""
 

@@ -9,7 +9,8 @@
   assumption (⚠) because the seeds give none, kept consistent with the plant's URV parameters
   (``onboard/plant/point_mass.py``: 15 t, 15 kN full brake, 8 % rotating mass).
 
-Speeds are in m/s, built from the km/h of the specification with :data:`KMH`.
+Speeds are in m/s, built from the km/h of the specification with
+:data:`protocol.units.MPS_PER_KMH`.
 """
 
 from __future__ import annotations
@@ -19,11 +20,10 @@ from dataclasses import dataclass, fields
 from enum import StrEnum
 
 from onboard.etcs._exceptions import TrainDataError
-from protocol.units import MPS_PER_KMH as KMH
+from protocol.units import MPS_PER_KMH
 
 __all__ = [
     "FIXED_VALUES",
-    "KMH",
     "NATIONAL_DEFAULTS",
     "URV_TRAIN_DATA",
     "BrakeModelType",
@@ -49,18 +49,18 @@ class FixedValues:
     at ``v_*_max`` (speeds of the MRSP, or of the LOA).
     """
 
-    dv_ebi_min_mps: float = 7.5 * KMH
-    dv_ebi_max_mps: float = 15.0 * KMH
-    v_ebi_min_mps: float = 110.0 * KMH
-    v_ebi_max_mps: float = 210.0 * KMH
-    dv_sbi_min_mps: float = 5.5 * KMH
-    dv_sbi_max_mps: float = 10.0 * KMH
-    v_sbi_min_mps: float = 110.0 * KMH
-    v_sbi_max_mps: float = 210.0 * KMH
-    dv_warning_min_mps: float = 4.0 * KMH
-    dv_warning_max_mps: float = 5.0 * KMH
-    v_warning_min_mps: float = 110.0 * KMH
-    v_warning_max_mps: float = 140.0 * KMH
+    dv_ebi_min_mps: float = 7.5 * MPS_PER_KMH
+    dv_ebi_max_mps: float = 15.0 * MPS_PER_KMH
+    v_ebi_min_mps: float = 110.0 * MPS_PER_KMH
+    v_ebi_max_mps: float = 210.0 * MPS_PER_KMH
+    dv_sbi_min_mps: float = 5.5 * MPS_PER_KMH
+    dv_sbi_max_mps: float = 10.0 * MPS_PER_KMH
+    v_sbi_min_mps: float = 110.0 * MPS_PER_KMH
+    v_sbi_max_mps: float = 210.0 * MPS_PER_KMH
+    dv_warning_min_mps: float = 4.0 * MPS_PER_KMH
+    dv_warning_max_mps: float = 5.0 * MPS_PER_KMH
+    v_warning_min_mps: float = 110.0 * MPS_PER_KMH
+    v_warning_max_mps: float = 140.0 * MPS_PER_KMH
     t_warning_s: float = 2.0
     t_driver_s: float = 4.0
     m_rotating_min_percent: float = 2.0
@@ -93,12 +93,12 @@ class NationalValues:
     others are kept so that the set is complete and a line can carry its own.
     """
 
-    v_nvshunt_mps: float = 30.0 * KMH
-    v_nvstff_mps: float = 40.0 * KMH
-    v_nvonsight_mps: float = 30.0 * KMH
-    v_nvlimsuperv_mps: float = 100.0 * KMH
-    v_nvunfit_mps: float = 100.0 * KMH
-    v_nvrel_mps: float = 40.0 * KMH
+    v_nvshunt_mps: float = 30.0 * MPS_PER_KMH
+    v_nvstff_mps: float = 40.0 * MPS_PER_KMH
+    v_nvonsight_mps: float = 30.0 * MPS_PER_KMH
+    v_nvlimsuperv_mps: float = 100.0 * MPS_PER_KMH
+    v_nvunfit_mps: float = 100.0 * MPS_PER_KMH
+    v_nvrel_mps: float = 40.0 * MPS_PER_KMH
     d_nvroll_m: float = 2.0
     d_nvpotrp_m: float = 200.0
     d_nvstff_m: float = math.inf
@@ -172,7 +172,7 @@ class TrainData:
 
     def __post_init__(self) -> None:
         _check_finite(self)
-        if not (0.0 < self.length_m <= 2000.0 and 0.0 < self.max_speed_mps <= 600.0 * KMH):
+        if not (0.0 < self.length_m <= 2000.0 and 0.0 < self.max_speed_mps <= 600.0 * MPS_PER_KMH):
             raise TrainDataError("train length must be in (0, 2000] m, max speed in (0, 600] km/h")
         if self.a_brake_emergency_mps2 <= 0 or self.a_brake_service_mps2 <= 0:
             raise TrainDataError("brake decelerations must be positive [m/s²]")
@@ -212,7 +212,7 @@ URV_TRAIN_DATA = TrainData(
     # ⚠ Assumed: a single-bogie vehicle under a small carbody ("closer to an SUV than a train").
     length_m=10.0,
     # Seed 003: the mission runs at up to 200 km/h.
-    max_speed_mps=200.0 * KMH,
+    max_speed_mps=200.0 * MPS_PER_KMH,
     # It brakes to a given deceleration; no brake percentage, so no conversion model.
     brake_model=BrakeModelType.GAMMA,
     # The plant's full brake, 15 kN on 15 t with 8 % rotating mass, on level track: 0.926 m/s²

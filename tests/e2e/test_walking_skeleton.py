@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 from fastapi.testclient import TestClient
 
-from deploy.processes import ato_command, child_process
+from deploy.processes import ChildProcess, ato_command
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import RealTimeClock
 from protocol import ZenohSettings, open_session, request
@@ -112,7 +112,8 @@ def test_cli_router_and_onboard_processes(
     """``ato onboard`` as a child process joins through the test's router; killing it is seen."""
     client, headers = trackside
     args = ato_command("onboard", "--vehicle", "URV2", "--zenoh", router_endpoint, "--speed", "2")
-    with child_process(args, log_file=tmp_path / "onboard.log") as process:
+    with ChildProcess(args, log_file=tmp_path / "onboard.log") as onboard:
+        process = onboard.process
         assert wait_for(
             lambda: (_vehicle(client, headers, "URV2") or {}).get("alive") is True, 30.0
         )
@@ -128,7 +129,8 @@ def test_a_killed_process_is_noticed_within_the_lease(
     """SIGKILL leaves no time to withdraw the token: the ≤ 1 s link lease must notice."""
     client, headers = trackside
     args = ato_command("onboard", "--vehicle", "URV3", "--zenoh", router_endpoint)
-    with child_process(args, log_file=tmp_path / "onboard.log") as process:
+    with ChildProcess(args, log_file=tmp_path / "onboard.log") as onboard:
+        process = onboard.process
         assert wait_for(
             lambda: (_vehicle(client, headers, "URV3") or {}).get("alive") is True, 30.0
         )

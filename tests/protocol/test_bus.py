@@ -10,6 +10,7 @@ import zenoh
 from protocol import (
     LivelinessWatcher,
     PayloadError,
+    ProtocolError,
     RequestTimeoutError,
     TopicMonitor,
     TypedPublisher,
@@ -17,9 +18,10 @@ from protocol import (
     TypedSubscriber,
     declare_liveliness,
     request,
+    request_async,
 )
 from protocol import messages as m
-from protocol.registry import COMMAND, EVENT, STATUS
+from protocol.registry import COMMAND, EVENT, LINE_VERSION, STATUS
 from tests.conftest import wait_for
 
 
@@ -119,6 +121,71 @@ def _try_request(session: zenoh.Session, command: m.Command) -> m.CommandAck | N
     except (RequestTimeoutError, PayloadError):
         return None
     return ack
+
+
+def test_request_async_hands_the_reply_model_to_its_callback(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    trackside, onboard = zenoh_pair
+    replies: list[m.CommandAck] = []
+
+    def answer(_chunks: dict[str, str], command: m.Command) -> m.CommandAck:
+        return m.CommandAck(
+            vehicle_id="URV1", command_id=command.command_id, accepted=False, sim_time_s=0.0
+        )
+
+    command = m.Command(vehicle_id="URV1", command_id=5, issued_by="t", body=m.PingCommand())
+    with TypedQueryable(onboard, COMMAND, answer, vehicle="URV1"):
+        assert wait_for(lambda: _try_request(trackside, command) is not None)
+        request_async(trackside, COMMAND, command, replies.append, vehicle="URV1")
+        assert wait_for(lambda: bool(replies))
+    assert isinstance(replies[0], m.CommandAck)
+    assert replies[0].command_id == 5
+
+
+def test_a_reply_that_does_not_validate_raises_payload_error(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    trackside, onboard = zenoh_pair
+    # A replier outside the registry's helpers, answering a command with a line version.
+    wrong = LINE_VERSION.encode_reply(m.LineVersionReply(line_id="bologna-ring", version="1"))
+    queryable = onboard.declare_queryable(
+        COMMAND.key(vehicle="URV3"), lambda query: query.reply(query.key_expr, wrong)
+    )
+    command = m.Command(vehicle_id="URV3", command_id=1, issued_by="t", body=m.PingCommand())
+    async_replies: list[m.CommandAck] = []
+    try:
+        assert wait_for(lambda: _refused(trackside, command))
+        with pytest.raises(PayloadError, match="command reply"):
+            request(trackside, COMMAND, command, timeout_s=1.0, vehicle="URV3")
+        request_async(trackside, COMMAND, command, async_replies.append, vehicle="URV3")
+        # A second query behind it on the same link: once its reply is in, so is the first's.
+        done = threading.Event()
+        trackside.get(COMMAND.key(vehicle="URV3"), lambda _r: done.set(), timeout=1.0)
+        assert done.wait(2.0)
+    finally:
+        queryable.undeclare()
+    assert async_replies == []  # dropped and logged, as a receiver does
+
+
+def _refused(session: zenoh.Session, command: m.Command) -> bool:
+    try:
+        request(session, COMMAND, command, timeout_s=0.2, vehicle="URV3")
+    except RequestTimeoutError:
+        return False
+    except PayloadError:
+        return True
+    return False
+
+
+def test_query_helpers_refuse_the_wrong_kind_of_topic(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    trackside, _ = zenoh_pair
+    with pytest.raises(ProtocolError, match="is a query topic"):
+        TypedPublisher(trackside, COMMAND, vehicle="URV1")  # type: ignore[arg-type]
+    with pytest.raises(ProtocolError, match="not a query topic"):
+        TypedQueryable(trackside, STATUS, lambda _c, _s: None)  # type: ignore[arg-type]
 
 
 def test_request_without_replier_times_out(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> None:

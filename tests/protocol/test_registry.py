@@ -3,11 +3,25 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import get_args
 
 import pytest
 
-from protocol import KeyExpressionError, PayloadError
-from protocol.registry import ALIVE_ONBOARD, COMMAND, SESSION, STATUS, TOPICS, Delivery
+from protocol import KeyExpressionError, PayloadError, registry
+from protocol import messages as m
+from protocol.registry import (
+    ALIVE_ONBOARD,
+    COMMAND,
+    LINE_VERSION,
+    MOVEMENT_AUTHORITY_CURRENT,
+    SESSION,
+    STATUS,
+    TOPICS,
+    Delivery,
+    Direction,
+    QueryTopic,
+    Topic,
+)
 
 
 def test_keys_are_under_ato_and_unique() -> None:
@@ -51,10 +65,61 @@ def test_rates_and_deliveries() -> None:
     assert STATUS.rate_hz == 5.0
     assert STATUS.period_s == pytest.approx(0.2)
     assert COMMAND.delivery is Delivery.QUERY
-    assert all(topic.reply_type is not None for topic in TOPICS if topic.delivery is Delivery.QUERY)
+    queries = [topic for topic in TOPICS if topic.delivery is Delivery.QUERY]
+    assert all(isinstance(topic, QueryTopic) for topic in queries)
+    assert [topic for topic in TOPICS if isinstance(topic, QueryTopic)] == queries
+
+
+def test_query_topics_carry_their_reply_model() -> None:
+    assert COMMAND.payload_type is m.Command
+    assert COMMAND.reply_type is m.CommandAck
+    assert LINE_VERSION.reply_type is m.LineVersionReply
+    assert SESSION.reply_type is m.SessionResponse
+    assert MOVEMENT_AUTHORITY_CURRENT.reply_type is m.MovementAuthorityReply
+    assert not hasattr(STATUS, "reply_type")
+
+
+def test_a_reply_of_another_model_does_not_validate() -> None:
+    ack = m.CommandAck(vehicle_id="URV1", command_id=1, accepted=True, sim_time_s=0.0)
+    assert COMMAND.decode_reply(COMMAND.encode_reply(ack)) == ack
+    with pytest.raises(PayloadError, match="command reply"):
+        COMMAND.decode_reply(LINE_VERSION.encode_reply(m.LineVersionReply(line_id="x")))
+
+
+def test_query_delivery_and_query_topic_go_together() -> None:
+    with pytest.raises(TypeError, match="QueryTopic"):
+        Topic("x", "ato/x", m.Command, Direction.ANY, Delivery.QUERY)
+    with pytest.raises(TypeError, match="QueryTopic"):
+        QueryTopic("x", "ato/x", m.Command, Direction.ANY, Delivery.FIFO, reply_type=m.CommandAck)
+
+
+def test_every_topic_of_the_module_is_in_the_table() -> None:
+    declared = {name: t for name, t in vars(registry).items() if isinstance(t, Topic)}
+    assert set(declared) <= set(registry.__all__)
+    assert {id(topic) for topic in declared.values()} == {id(topic) for topic in TOPICS}
 
 
 def test_every_topic_is_documented_in_the_keyspace_page() -> None:
     page = (Path(__file__).resolve().parents[2] / "docs" / "keyspace.md").read_text()
     missing = [t.key_template for t in TOPICS if f"`{t.key_template}`" not in page]
     assert missing == []
+
+
+def test_the_keyspace_page_names_each_topic_s_payload_and_reply() -> None:
+    page = (Path(__file__).resolve().parents[2] / "docs" / "keyspace.md").read_text()
+    rows = {line.split("|")[1].strip(" `"): line for line in page.splitlines() if "| `ato/" in line}
+    for topic in TOPICS:
+        row = rows[topic.key_template]
+        assert row.split("|")[2].strip().startswith(f"`{topic.payload_type.__name__}`")
+        if isinstance(topic, QueryTopic):
+            first, *others = _model_names(topic.reply_type)
+            assert f"reply `{first}`" in row, topic.name
+            assert all(f"`{name}`" in row for name in others), topic.name
+
+
+def _model_names(model: object) -> list[str]:
+    """A model's name, or the names of an annotated union's members."""
+    if isinstance(model, type):
+        return [model.__name__]
+    union, *_metadata = get_args(model)
+    return [member.__name__ for member in get_args(union)]

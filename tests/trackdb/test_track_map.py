@@ -15,6 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
+from protocol.units import MPS_PER_KMH
 from trackdb import (
     GpsProjection,
     Line,
@@ -29,7 +30,6 @@ from trackdb import (
 )
 from trackdb.builder import enu_to_geodetic, geodetic_to_enu
 
-KMH = 1.0 / 3.6
 SPEED_ATOL_MPS = 1e-9
 CHAINAGE_ATOL_M = 1e-6
 PROJECTION_ATOL_M = 0.03
@@ -84,7 +84,9 @@ def ring_gap_m(track: TrackMap, a_m: float, b_m: float) -> float:
 
 
 def tsr(id: str, start_m: float, end_m: float, speed_kmh: float) -> TemporarySpeedRestriction:
-    return TemporarySpeedRestriction(id=id, start_m=start_m, end_m=end_m, speed_mps=speed_kmh * KMH)
+    return TemporarySpeedRestriction(
+        id=id, start_m=start_m, end_m=end_m, speed_mps=speed_kmh * MPS_PER_KMH
+    )
 
 
 # -- chainage and profiles ------------------------------------------------------------------
@@ -96,7 +98,7 @@ def test_normalise_wraps_a_ring_and_clamps_an_open_line() -> None:
     assert ring.normalise(-250.0) == pytest.approx(750.0, abs=CHAINAGE_ATOL_M)
     # -1e-17 % 1000 rounds to 1000.0 itself: it must come out as the origin.
     assert ring.normalise(-1e-17) == 0.0
-    assert ring.speed_limit_mps(-1e-17) == pytest.approx(60 * KMH, abs=SPEED_ATOL_MPS)
+    assert ring.speed_limit_mps(-1e-17) == pytest.approx(60 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
     assert line.normalise(-5.0) == 0.0
     assert line.normalise(1e6) < line.length_m
     assert line.normalise(1e6) == pytest.approx(line.length_m, abs=CHAINAGE_ATOL_M)
@@ -121,32 +123,34 @@ def test_mrsp_is_the_lowest_of_ssp_and_tsrs() -> None:
     track = TrackMap(open_line())
     expected_kmh = {100.0: 72, 199.9: 72, 200.0: 36, 349.9: 36, 350.0: 54, 499.9: 54, 600.0: 72}
     for chainage_m, speed_kmh in expected_kmh.items():
-        assert track.mrsp_mps(chainage_m) == pytest.approx(speed_kmh * KMH, abs=SPEED_ATOL_MPS)
-    assert track.speed_limit_mps(250.0) == pytest.approx(72 * KMH, abs=SPEED_ATOL_MPS)
-    assert track.mrsp_mps(-10.0) == pytest.approx(72 * KMH, abs=SPEED_ATOL_MPS)
-    assert track.mrsp_mps(1e6) == pytest.approx(72 * KMH, abs=SPEED_ATOL_MPS)
+        assert track.mrsp_mps(chainage_m) == pytest.approx(
+            speed_kmh * MPS_PER_KMH, abs=SPEED_ATOL_MPS
+        )
+    assert track.speed_limit_mps(250.0) == pytest.approx(72 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
+    assert track.mrsp_mps(-10.0) == pytest.approx(72 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
+    assert track.mrsp_mps(1e6) == pytest.approx(72 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
 
 
 def test_tsrs_added_overlapping_replaced_and_revoked() -> None:
     track = TrackMap(open_line())
     track.add_temporary_speed_restriction(tsr("slow", 250.0, 450.0, 18))
     track.add_temporary_speed_restriction(tsr("loose", 0.0, 1000.0, 100))  # above the SSP
-    assert track.mrsp_mps(225.0) == pytest.approx(36 * KMH, abs=SPEED_ATOL_MPS)
-    assert track.mrsp_mps(300.0) == pytest.approx(18 * KMH, abs=SPEED_ATOL_MPS)
-    assert track.mrsp_mps(449.0) == pytest.approx(18 * KMH, abs=SPEED_ATOL_MPS)
-    assert track.mrsp_mps(450.0) == pytest.approx(54 * KMH, abs=SPEED_ATOL_MPS)
-    assert track.mrsp_mps(700.0) == pytest.approx(72 * KMH, abs=SPEED_ATOL_MPS)
+    assert track.mrsp_mps(225.0) == pytest.approx(36 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
+    assert track.mrsp_mps(300.0) == pytest.approx(18 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
+    assert track.mrsp_mps(449.0) == pytest.approx(18 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
+    assert track.mrsp_mps(450.0) == pytest.approx(54 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
+    assert track.mrsp_mps(700.0) == pytest.approx(72 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
     assert [r.id for r in track.temporary_speed_restrictions] == ["works", "slow", "loose"]
 
     track.add_temporary_speed_restriction(tsr("slow", 250.0, 300.0, 27))  # same id: replaces
-    assert track.mrsp_mps(400.0) == pytest.approx(54 * KMH, abs=SPEED_ATOL_MPS)
-    assert track.mrsp_mps(275.0) == pytest.approx(27 * KMH, abs=SPEED_ATOL_MPS)
+    assert track.mrsp_mps(400.0) == pytest.approx(54 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
+    assert track.mrsp_mps(275.0) == pytest.approx(27 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
     assert len(track.temporary_speed_restrictions) == 3
 
     assert track.revoke_temporary_speed_restriction("works")
     assert not track.revoke_temporary_speed_restriction("works")
-    assert track.mrsp_mps(225.0) == pytest.approx(72 * KMH, abs=SPEED_ATOL_MPS)
-    assert track.mrsp_mps(275.0) == pytest.approx(27 * KMH, abs=SPEED_ATOL_MPS)
+    assert track.mrsp_mps(225.0) == pytest.approx(72 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
+    assert track.mrsp_mps(275.0) == pytest.approx(27 * MPS_PER_KMH, abs=SPEED_ATOL_MPS)
     # The line itself is unchanged, and so is its version.
     assert track.version == open_line().version()
     assert len(track.line.temporary_speed_restrictions) == 1
@@ -167,15 +171,15 @@ def test_mrsp_window_on_the_open_line() -> None:
     assert len(sections) == len(expected)
     for section, (from_m, to_m, speed_kmh) in zip(sections, expected, strict=True):
         assert isinstance(section, SpeedSection)
-        assert_allclose(section, (from_m, to_m, speed_kmh * KMH), atol=CHAINAGE_ATOL_M)
+        assert_allclose(section, (from_m, to_m, speed_kmh * MPS_PER_KMH), atol=CHAINAGE_ATOL_M)
     # The window stops at the line's end; from the end (or beyond) nothing lies ahead.
     tail = track.mrsp_window(900.0, 500.0)
-    assert_allclose(tail, [(0.0, 100.0, 72 * KMH)], atol=CHAINAGE_ATOL_M)
+    assert_allclose(tail, [(0.0, 100.0, 72 * MPS_PER_KMH)], atol=CHAINAGE_ATOL_M)
     assert track.mrsp_window(1000.0, 100.0) == []
     assert track.mrsp_window(2000.0, 100.0) == []
     assert track.mrsp_window(500.0, 0.0) == []
     head = track.mrsp_window(-50.0, 100.0)  # clamped to the origin
-    assert_allclose(head, [(0.0, 100.0, 72 * KMH)], atol=CHAINAGE_ATOL_M)
+    assert_allclose(head, [(0.0, 100.0, 72 * MPS_PER_KMH)], atol=CHAINAGE_ATOL_M)
     with pytest.raises(ValueError, match="not a finite length"):
         track.mrsp_window(0.0, -1.0)
 
@@ -184,7 +188,11 @@ def test_mrsp_window_runs_across_the_ring_origin_and_merges() -> None:
     track = TrackMap(ring_line())
     sections = track.mrsp_window(900.0, 300.0)
     # 900–950 curve at 40; 950–1000 and 0–60 under TSRs at 20 (one section); 60–200 at 60.
-    expected = [(0.0, 50.0, 40 * KMH), (50.0, 160.0, 20 * KMH), (160.0, 300.0, 60 * KMH)]
+    expected = [
+        (0.0, 50.0, 40 * MPS_PER_KMH),
+        (50.0, 160.0, 20 * MPS_PER_KMH),
+        (160.0, 300.0, 60 * MPS_PER_KMH),
+    ]
     assert_allclose(sections, expected, atol=CHAINAGE_ATOL_M)
     laps = track.mrsp_window(0.0, 2500.0)
     assert laps[-1].to_distance_m == pytest.approx(2500.0, abs=CHAINAGE_ATOL_M)
@@ -198,9 +206,13 @@ def test_mrsp_ahead_samples_like_the_point_query() -> None:
         expected = [track.mrsp_mps(940.0 + distance) for distance in distances_m.tolist()]
         assert_allclose(track.mrsp_ahead_mps(940.0, distances_m), expected, atol=SPEED_ATOL_MPS)
     ring = TrackMap(ring_line())
-    assert_allclose(ring.mrsp_ahead_mps(0.0, -1e-17), 20 * KMH, atol=SPEED_ATOL_MPS)
+    assert_allclose(ring.mrsp_ahead_mps(0.0, -1e-17), 20 * MPS_PER_KMH, atol=SPEED_ATOL_MPS)
     grid = ring.mrsp_ahead_mps(900.0, [[0.0, 100.0], [200.0, 300.0]])
-    assert_allclose(grid, [[40 * KMH, 20 * KMH], [60 * KMH, 40 * KMH]], atol=SPEED_ATOL_MPS)
+    assert_allclose(
+        grid,
+        [[40 * MPS_PER_KMH, 20 * MPS_PER_KMH], [60 * MPS_PER_KMH, 40 * MPS_PER_KMH]],
+        atol=SPEED_ATOL_MPS,
+    )
 
 
 tsr_lists = st.lists(

@@ -10,7 +10,6 @@ import pytest
 from numpy.testing import assert_allclose
 
 from onboard.etcs import (
-    KMH,
     BrakeModelType,
     BrakingCapabilityError,
     BrakingModel,
@@ -30,6 +29,7 @@ from onboard.etcs import (
 )
 from onboard.etcs.deceleration import gradient_steps, lowest_gradient_under_train
 from onboard.etcs.values import URV_TRAIN_DATA, conversion_model_build_up_times_s
+from protocol.units import MPS_PER_KMH
 from tests.onboard.etcs import reference_braking as ref
 from trackdb import LineBuilder, TrackMap
 
@@ -70,7 +70,7 @@ def test_stop_curves_at_160_kmh_match_the_reference(
     gradient_permille: float, acceleration_mps2: float
 ) -> None:
     expected = ref.stop_curves(160.0, gradient_permille, acceleration_mps2)
-    speed = 160.0 * KMH
+    speed = 160.0 * MPS_PER_KMH
     for kind, keys in (
         (TargetKind.SUPERVISED_LOCATION, SVL_KEYS),
         (TargetKind.END_OF_AUTHORITY, EOA_KEYS),
@@ -99,28 +99,32 @@ def test_documented_numbers_are_pinned() -> None:
         atol=1e-3,
     )
     limits = _limits(TargetKind.SUPERVISED_LOCATION, -10.0)
-    assert_allclose(limits.distance_m(Limit.EBI, 160.0 * KMH), 1647.683, atol=1e-3)
+    assert_allclose(limits.distance_m(Limit.EBI, 160.0 * MPS_PER_KMH), 1647.683, atol=1e-3)
 
 
 @pytest.mark.parametrize("speed_kmh", [100.0, 160.0, 210.0])
 def test_ceiling_margins_match_the_reference(speed_kmh: float) -> None:
-    speed = speed_kmh * KMH
-    assert_allclose(dv_ebi_mps(speed), ref.dv_ebi_kmh(speed_kmh) * KMH, atol=1e-12)
-    assert_allclose(dv_sbi_mps(speed), ref.dv_sbi_kmh(speed_kmh) * KMH, atol=1e-12)
-    assert_allclose(dv_warning_mps(speed), ref.dv_warning_kmh(speed_kmh) * KMH, atol=1e-12)
+    speed = speed_kmh * MPS_PER_KMH
+    assert_allclose(dv_ebi_mps(speed), ref.dv_ebi_kmh(speed_kmh) * MPS_PER_KMH, atol=1e-12)
+    assert_allclose(dv_sbi_mps(speed), ref.dv_sbi_kmh(speed_kmh) * MPS_PER_KMH, atol=1e-12)
+    assert_allclose(dv_warning_mps(speed), ref.dv_warning_kmh(speed_kmh) * MPS_PER_KMH, atol=1e-12)
 
 
 def test_ceiling_margins_documented_values() -> None:
     table = {100.0: (7.5, 5.5, 4.0), 160.0: (11.25, 7.75, 5.0), 210.0: (15.0, 10.0, 5.0)}
     for speed_kmh, margins_kmh in table.items():
-        speed = speed_kmh * KMH
-        got = [dv_ebi_mps(speed) / KMH, dv_sbi_mps(speed) / KMH, dv_warning_mps(speed) / KMH]
+        speed = speed_kmh * MPS_PER_KMH
+        got = [
+            dv_ebi_mps(speed) / MPS_PER_KMH,
+            dv_sbi_mps(speed) / MPS_PER_KMH,
+            dv_warning_mps(speed) / MPS_PER_KMH,
+        ]
         assert_allclose(got, margins_kmh, atol=1e-9)
 
 
 def test_speed_accuracy_law() -> None:
     for speed_kmh in (0.0, 30.0, 160.0, 500.0, 600.0):
-        got = speed_measurement_accuracy_mps(speed_kmh * KMH) / KMH
+        got = speed_measurement_accuracy_mps(speed_kmh * MPS_PER_KMH) / MPS_PER_KMH
         assert_allclose(got, ref.v_ura_kmh(speed_kmh), atol=1e-9)
 
 
@@ -128,7 +132,7 @@ def test_limits_are_ordered_and_grow_with_speed() -> None:
     limits = _limits(TargetKind.SUPERVISED_LOCATION, 0.0)
     previous = None
     for speed_kmh in range(0, 201, 10):
-        d = limits.distances(speed_kmh * KMH)
+        d = limits.distances(speed_kmh * MPS_PER_KMH)
         assert d.emergency_brake_intervention_m is not None
         order = [
             d.emergency_brake_intervention_m,
@@ -145,15 +149,17 @@ def test_limits_are_ordered_and_grow_with_speed() -> None:
 
 def test_mrsp_target_ebd_crosses_target_speed_plus_dv_ebi_at_the_target() -> None:
     model = BrakingModel()
-    target = Target(TargetKind.SPEED_DECREASE, 5_000.0, 80.0 * KMH)
+    target = Target(TargetKind.SPEED_DECREASE, 5_000.0, 80.0 * MPS_PER_KMH)
     limits = model.target_limits(target)
-    assert_allclose(limits.curve.speed_mps(0.0), (80.0 + 7.5) * KMH, atol=1e-12)
+    assert_allclose(limits.curve.speed_mps(0.0), (80.0 + 7.5) * MPS_PER_KMH, atol=1e-12)
     # Level track: V² = V_t² + 2·A_safe·d.
-    expected = math.sqrt(((80.0 + 7.5) * KMH) ** 2 + 2 * model.a_brake_safe_mps2 * 1000.0)
+    expected = math.sqrt(((80.0 + 7.5) * MPS_PER_KMH) ** 2 + 2 * model.a_brake_safe_mps2 * 1000.0)
     assert_allclose(limits.speed_mps(Limit.EBD, 1000.0), expected, atol=1e-9)
     # The permitted speed never falls below the target speed when the supervision floors it,
     # and the P limit is ahead of the EBI's.
-    assert limits.distance_m(Limit.PERMITTED, 120 * KMH) > limits.distance_m(Limit.EBI, 120 * KMH)
+    assert limits.distance_m(Limit.PERMITTED, 120 * MPS_PER_KMH) > limits.distance_m(
+        Limit.EBI, 120 * MPS_PER_KMH
+    )
 
 
 def test_gradient_changes_apply_with_the_train_length() -> None:
@@ -214,7 +220,7 @@ def test_braking_times_of_the_urv_and_of_a_lambda_train() -> None:
     assert_allclose((t_eb, t_sb), (2.30 + 0.17 * 16, 3.0 + 6.0 + 1.6), atol=1e-12)
     lambda_train = TrainData(
         length_m=400.0,
-        max_speed_mps=160 * KMH,
+        max_speed_mps=160 * MPS_PER_KMH,
         brake_model=BrakeModelType.LAMBDA,
         a_brake_emergency_mps2=1.0,
         a_brake_service_mps2=0.8,
@@ -264,9 +270,20 @@ def test_the_bisection_limit_function_is_the_limit_arithmetic_bit_for_bit(
     targets = [
         Target(TargetKind.END_OF_AUTHORITY, 9_000.0),
         Target(TargetKind.SUPERVISED_LOCATION, 9_500.0),
-        Target(TargetKind.SPEED_DECREASE, 10_000.0, 40 * KMH),
+        Target(TargetKind.SPEED_DECREASE, 10_000.0, 40 * MPS_PER_KMH),
     ]
-    speeds = [0.0, 1e-3, 5.0, 30 * KMH, 30 * KMH + 1e-9, 11.0, 40 * KMH, 90.0, 140.0, 600.0]
+    speeds = [
+        0.0,
+        1e-3,
+        5.0,
+        30 * MPS_PER_KMH,
+        30 * MPS_PER_KMH + 1e-9,
+        11.0,
+        40 * MPS_PER_KMH,
+        90.0,
+        140.0,
+        600.0,
+    ]
     for target in targets:
         limits = model.target_limits(target, track_map=track_map, from_m=0.0)
         for limit in limits.limits:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import pytest
 
 from onboard.etcs import (
-    KMH,
     MODE_TRANSITIONS,
     EtcsLevel,
     EtcsOnboard,
@@ -19,6 +18,7 @@ from onboard.etcs import (
 )
 from onboard.etcs.modes import MODELLED_MODES, select_transition
 from protocol.messages import EtcsMode
+from protocol.units import MPS_PER_KMH
 from tests.onboard.etcs.layouts import DT_S, in_full_supervision, level_line
 
 M = EtcsMode
@@ -94,8 +94,8 @@ def _run(etcs: EtcsOnboard, from_m: float, to_m: float, speed_kmh: float) -> Non
     position_m, now_s = from_m, etcs.output.time_s
     while position_m < to_m:
         now_s += DT_S
-        position_m = min(position_m + speed_kmh * KMH * DT_S, to_m)
-        etcs.step(now_s, position_m, speed_kmh * KMH)
+        position_m = min(position_m + speed_kmh * MPS_PER_KMH * DT_S, to_m)
+        etcs.step(now_s, position_m, speed_kmh * MPS_PER_KMH)
 
 
 def test_start_in_staff_responsible_then_full_supervision_at_a_balise_group() -> None:
@@ -105,8 +105,8 @@ def test_start_in_staff_responsible_then_full_supervision_at_a_balise_group() ->
     assert etcs.mode is M.SB
     etcs.start_of_mission(0.0)
     assert etcs.mode is M.SR
-    out = etcs.step(0.1, 100.0, 10 * KMH)
-    assert out.permitted_speed_mps == pytest.approx(40 * KMH)  # V_NVSTFF
+    out = etcs.step(0.1, 100.0, 10 * MPS_PER_KMH)
+    assert out.permitted_speed_mps == pytest.approx(40 * MPS_PER_KMH)  # V_NVSTFF
     _run(etcs, 100.0, 600.0, 30.0)
     assert etcs.mode is M.FS
     assert _taken(etcs) == [(M.SB, M.SR, None), (M.SR, M.FS, 32)]
@@ -135,18 +135,22 @@ def test_trip_at_the_end_of_authority_then_post_trip_and_back_to_full_supervisio
     position_m, now_s = 1_800.0, 0.0
     while etcs.mode is M.FS:
         now_s += DT_S
-        position_m += 20 * KMH * DT_S
-        out = etcs.step(now_s, position_m, 20 * KMH)
+        position_m += 20 * MPS_PER_KMH * DT_S
+        out = etcs.step(now_s, position_m, 20 * MPS_PER_KMH)
     assert out.mode is M.TR
     assert out.emergency_brake
-    assert out.odometry.min_safe_front_m > eoa_m >= out.odometry.min_safe_front_m - 20 * KMH * DT_S
+    assert (
+        out.odometry.min_safe_front_m
+        > eoa_m
+        >= out.odometry.min_safe_front_m - 20 * MPS_PER_KMH * DT_S
+    )
     assert _taken(etcs)[-1] == (M.FS, M.TR, 16)
     with pytest.raises(TransitionRefusedError):
         etcs.acknowledge_trip(now_s)
     # The EB holds while the train runs and is not released by the mode alone.
     for speed_kmh in (15.0, 5.0, 0.0):
         now_s += DT_S
-        out = etcs.step(now_s, position_m, speed_kmh * KMH)
+        out = etcs.step(now_s, position_m, speed_kmh * MPS_PER_KMH)
         assert out.emergency_brake
         assert out.mode is M.TR
     assert (
@@ -185,8 +189,8 @@ def test_staff_responsible_distance_trips() -> None:
     position_m, now_s, min_safe = 0.0, 0.0, []
     while etcs.mode is M.SR:
         now_s += DT_S
-        position_m += 30 * KMH * DT_S
-        min_safe.append(etcs.step(now_s, position_m, 30 * KMH).odometry.min_safe_front_m)
+        position_m += 30 * MPS_PER_KMH * DT_S
+        min_safe.append(etcs.step(now_s, position_m, 30 * MPS_PER_KMH).odometry.min_safe_front_m)
     assert _taken(etcs)[-1] == (M.SR, M.TR, 42)
     assert min_safe[-2] <= 300.0 < min_safe[-1]
 
@@ -211,7 +215,7 @@ def test_automatic_driving_engaged_and_left_on_a_brake_or_a_disengagement() -> N
     assert etcs.mode is M.FS  # the rear end is not yet on the track description (from 95 m)
     etcs.step(0.1, 140.0, 0.0)
     assert etcs.mode is M.AD  # the request stands until it can be granted
-    etcs.step(0.2, 140.0, 107 * KMH)  # SB from CSM
+    etcs.step(0.2, 140.0, 107 * MPS_PER_KMH)  # SB from CSM
     assert etcs.mode is M.FS
     assert _taken(etcs)[-1] == (M.AD, M.FS, 24)
     etcs.step(0.3, 140.0, 0.0)
@@ -236,7 +240,7 @@ def test_on_sight_area_in_and_out() -> None:
     assert etcs.mode is M.FS
     _run(etcs, 900.0, 1_200.0, 25.0)
     assert etcs.mode is M.OS
-    assert etcs.output.ceiling_speed_mps == pytest.approx(30 * KMH)  # V_NVONSIGHT
+    assert etcs.output.ceiling_speed_mps == pytest.approx(30 * MPS_PER_KMH)  # V_NVONSIGHT
     _run(etcs, 1_200.0, 1_520.0, 25.0)
     assert etcs.mode is M.FS
     assert [t for _, t, _ in _taken(etcs)] == [M.FS, M.OS, M.FS]
@@ -248,7 +252,9 @@ def test_balise_group_at_the_end_of_authority_in_release_speed_monitoring_trips(
     etcs = EtcsOnboard(track_map, position_m=850.0)
     etcs.pass_balise_group(track_map.line.balise_groups[0], 0.0, position_m=100.0)
     etcs.receive_movement_authority(
-        MovementAuthority(reference_m=100.0, end_of_authority_m=900.0, release_speed_mps=15 * KMH),
+        MovementAuthority(
+            reference_m=100.0, end_of_authority_m=900.0, release_speed_mps=15 * MPS_PER_KMH
+        ),
         0.0,
     )
     assert etcs.mode is M.FS
@@ -261,9 +267,9 @@ def test_isolation_from_any_mode_and_insertion_back_to_stand_by() -> None:
     etcs = in_full_supervision(
         level_line(speed_kmh=100.0), position_m=100.0, end_of_authority_m=9_000.0
     )
-    assert etcs.step(0.1, 100.0, 110 * KMH).emergency_brake
+    assert etcs.step(0.1, 100.0, 110 * MPS_PER_KMH).emergency_brake
     etcs.isolate(0.2)
-    out = etcs.step(0.3, 110.0, 110 * KMH)
+    out = etcs.step(0.3, 110.0, 110 * MPS_PER_KMH)
     assert out.mode is M.IS
     assert not (out.emergency_brake)
     assert not (out.service_brake)

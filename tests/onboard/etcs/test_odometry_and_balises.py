@@ -6,7 +6,6 @@ import pytest
 from numpy.testing import assert_allclose
 
 from onboard.etcs import (
-    KMH,
     EtcsInputError,
     EtcsLevel,
     EtcsOnboard,
@@ -16,6 +15,7 @@ from onboard.etcs import (
     read_balise_group,
 )
 from protocol.messages import EtcsMode
+from protocol.units import MPS_PER_KMH
 from tests.onboard.etcs.layouts import DT_S, level_line
 from trackdb import LineBuilder, TrackMap
 from trackdb.schema import LevelTransitionPacket
@@ -44,7 +44,7 @@ def test_onboard_interval_resets_at_each_group_with_the_linked_accuracy() -> Non
     widths: dict[float, float] = {}
     for k in range(1, 41):
         position_m = 100.0 * k
-        out = etcs.step(k * DT_S, position_m, 20 * KMH)
+        out = etcs.step(k * DT_S, position_m, 20 * MPS_PER_KMH)
         widths[position_m] = out.odometry.over_reading_m
         assert out.odometry.under_reading_m == out.odometry.over_reading_m
     # From the start: national Q_NVLOCACC 12 m; group 7 was not announced: 12 m again;

@@ -12,7 +12,6 @@ import pytest
 
 import onboard.etcs
 from onboard.etcs import (
-    KMH,
     URV_TRAIN_DATA,
     EtcsError,
     EtcsInputError,
@@ -24,6 +23,7 @@ from onboard.etcs import (
     TrainDataError,
 )
 from protocol.messages import EtcsMode
+from protocol.units import MPS_PER_KMH
 from tests.onboard.etcs.layouts import in_full_supervision, level_line
 from trackdb import TrackMap, load_seed_line
 
@@ -57,7 +57,7 @@ def test_a_lap_of_the_seed_ring_runs_in_full_supervision_without_intervention() 
     assert not any(o.service_brake or o.emergency_brake for o in outputs)
     assert {o.lrbg_id for o in outputs} == {None, 101, 102, 103, 104}
     # The permitted speed reached the 80 km/h line speed and the 60 km/h curves.
-    permitted_kmh = {round(o.permitted_speed_mps / KMH) for o in outputs}
+    permitted_kmh = {round(o.permitted_speed_mps / MPS_PER_KMH) for o in outputs}
     assert {40, 60, 80} <= permitted_kmh
     assert all(
         o.end_of_authority_distance_m is None or o.end_of_authority_distance_m > 500

@@ -8,7 +8,6 @@ from dataclasses import replace
 import pytest
 
 from onboard.etcs import (
-    KMH,
     URV_TRAIN_DATA,
     EtcsOnboard,
     EtcsOutput,
@@ -18,6 +17,7 @@ from onboard.etcs import (
 )
 from onboard.etcs.supervision import Demand, InterventionLatch
 from protocol.messages import EtcsMode, SupervisionStatus
+from protocol.units import MPS_PER_KMH
 from tests.onboard.etcs import reference_braking as ref
 from tests.onboard.etcs.layouts import DT_S, in_full_supervision, level_line
 
@@ -29,7 +29,7 @@ def _ramp(etcs: EtcsOnboard, position_m: float, speeds_kmh: list[float]) -> list
     """Steps at a fixed position with the given speeds, 0.1 s apart."""
     start_s = etcs.output.time_s
     return [
-        etcs.step(start_s + (k + 1) * DT_S, position_m, speed * KMH)
+        etcs.step(start_s + (k + 1) * DT_S, position_m, speed * MPS_PER_KMH)
         for k, speed in enumerate(speeds_kmh)
     ]
 
@@ -129,9 +129,9 @@ def test_target_speed_ramp_towards_the_end_of_authority_reaches_every_status() -
     position_m, speed_kmh = 18_300.0, 100.0
     records: list[tuple[EtcsOutput, float]] = []
     for k in range(70):
-        out = etcs.step((k + 1) * DT_S, position_m, speed_kmh * KMH)
+        out = etcs.step((k + 1) * DT_S, position_m, speed_kmh * MPS_PER_KMH)
         records.append((out, speed_kmh))
-        position_m += speed_kmh * KMH * DT_S
+        position_m += speed_kmh * MPS_PER_KMH * DT_S
         speed_kmh += 1.0
     statuses = [out.supervision_status for out, _ in records]
     assert [s for k, s in enumerate(statuses) if k == 0 or s != statuses[k - 1]] == ORDER
@@ -139,13 +139,13 @@ def test_target_speed_ramp_towards_the_end_of_authority_reaches_every_status() -
     # means faster than the permitted speed shown.
     assert speed_kmh < 175.0
     for out, speed in records:
-        assert out.ceiling_speed_mps == pytest.approx(200 * KMH)
+        assert out.ceiling_speed_mps == pytest.approx(200 * MPS_PER_KMH)
         if out.supervision_status is not S.NORMAL:
             assert out.monitoring is Monitoring.TARGET_SPEED
         if out.supervision_status in (S.INDICATION, S.NORMAL):
-            assert speed * KMH <= out.permitted_speed_mps + 1e-6
+            assert speed * MPS_PER_KMH <= out.permitted_speed_mps + 1e-6
         if out.supervision_status is S.OVERSPEED:
-            assert speed * KMH > out.permitted_speed_mps
+            assert speed * MPS_PER_KMH > out.permitted_speed_mps
     # The SvL (= EoA, on the max-safe front end) governs; each status begins exactly when the
     # front end crosses the independently computed limit.
     keys = {S.INDICATION: "i_svl", S.OVERSPEED: "p_svl", S.WARNING: "w_svl"}
@@ -178,22 +178,25 @@ def test_permitted_speed_falls_to_zero_at_the_end_of_authority() -> None:
             eoa_m - out.odometry.max_safe_front_m
         )
     assert permitted == sorted(permitted, reverse=True)
-    assert permitted[0] == pytest.approx(200 * KMH)
+    assert permitted[0] == pytest.approx(200 * MPS_PER_KMH)
     assert permitted[-1] == 0.0
 
 
 def test_release_speed_monitoring_replaces_the_curves_near_the_end_of_authority() -> None:
     eoa_m = 2_000.0
     etcs = in_full_supervision(
-        level_line(), position_m=1_900.0, end_of_authority_m=eoa_m, release_speed_mps=20 * KMH
+        level_line(),
+        position_m=1_900.0,
+        end_of_authority_m=eoa_m,
+        release_speed_mps=20 * MPS_PER_KMH,
     )
-    out = etcs.step(0.1, 1_990.0, 15 * KMH)
+    out = etcs.step(0.1, 1_990.0, 15 * MPS_PER_KMH)
     assert out.monitoring is Monitoring.RELEASE_SPEED
-    assert out.permitted_speed_mps == pytest.approx(20 * KMH)
-    assert out.release_speed_mps == pytest.approx(20 * KMH)
+    assert out.permitted_speed_mps == pytest.approx(20 * MPS_PER_KMH)
+    assert out.release_speed_mps == pytest.approx(20 * MPS_PER_KMH)
     assert out.supervision_status is S.NORMAL
     assert not out.emergency_brake
-    out = etcs.step(0.2, 1_991.0, 21 * KMH)
+    out = etcs.step(0.2, 1_991.0, 21 * MPS_PER_KMH)
     assert out.emergency_brake
     assert out.supervision_status is S.INTERVENTION
 
