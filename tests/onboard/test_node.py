@@ -124,7 +124,7 @@ def test_commands_that_cannot_be_obeyed_are_refused_with_a_reason(
 
 def test_command_for_another_vehicle_is_refused(node: OnboardNode) -> None:
     command = m.Command(vehicle_id="URV2", command_id=1, issued_by="t", body=m.PingCommand())
-    ack = node._on_command({"vehicle": "URV1"}, command)
+    ack = node.commands.on_command({"vehicle": "URV1"}, command)
     assert not ack.accepted
 
 
@@ -170,14 +170,14 @@ def test_the_lockstep_barrier_wakes_only_once_the_acknowledgement_can_be_taken(
     run. Each wake must find its acknowledgement already received."""
     trackside, _ = zenoh_pair
     received_at_wake: list[int] = []
-    acks = node._status_acks
+    acks = node.ports.status_acks
 
     class Probe(threading.Event):
         def set(self) -> None:
             received_at_wake.append(acks.stats.received)
             super().set()
 
-    node._status_acked = Probe()
+    node.barrier.acked = Probe()
     with TypedPublisher(trackside, STATUS_ACK, vehicle="URV1") as publisher:
         assert wait_for(lambda: (publisher.put(_ack(0)), bool(received_at_wake))[1])
         sent = len(received_at_wake)

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import pytest
 
+from onboard.commands import command_refusal
 from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.stack import OnboardStack
 from protocol import messages as m
@@ -87,17 +88,17 @@ def test_a_journey_on_other_track_data_is_rejected() -> None:
 
 def test_requests_are_refused_with_reasons_in_the_wrong_state() -> None:
     onboard = stack()
-    engage = onboard.refusal(m.EngageCommand())
+    engage = command_refusal(onboard, m.EngageCommand())
     assert engage is not None
     assert "no journey profile" in engage
     onboard.review_journey(profile(300.0))
     onboard.step_etcs(0.0)
     onboard.step_control(0.0)
-    engage = onboard.refusal(m.EngageCommand())
+    engage = command_refusal(onboard, m.EngageCommand())
     assert engage is not None
     assert "not ready" in engage
-    assert onboard.refusal(m.DisengageCommand()) == "ATO-OB is not engaged"
-    fast = onboard.refusal(m.RemoteDrivingTargetCommand(target_speed_mps=60.0))
+    assert command_refusal(onboard, m.DisengageCommand()) == "ATO-OB is not engaged"
+    fast = command_refusal(onboard, m.RemoteDrivingTargetCommand(target_speed_mps=60.0))
     assert fast is not None
     assert "above line speed" in fast
 
@@ -126,16 +127,16 @@ def test_an_rbc_movement_authority_reaches_etcs() -> None:
 
 def test_skip_stop_and_train_hold_are_checked_against_the_journey() -> None:
     onboard = stack()
-    assert onboard.refusal(m.TrainHoldCommand(hold=True)) == "no journey profile accepted"
-    assert onboard.refusal(m.SkipStopCommand(timing_point_id="east")) == (
+    assert command_refusal(onboard, m.TrainHoldCommand(hold=True)) == "no journey profile accepted"
+    assert command_refusal(onboard, m.SkipStopCommand(timing_point_id="east")) == (
         "no journey profile accepted"
     )
     onboard.review_journey(profile(300.0))
-    last = onboard.refusal(m.SkipStopCommand(timing_point_id="east"))
+    last = command_refusal(onboard, m.SkipStopCommand(timing_point_id="east"))
     assert last == "east ends the journey: it cannot be skipped"
-    unknown = onboard.refusal(m.SkipStopCommand(timing_point_id="nowhere"))
+    unknown = command_refusal(onboard, m.SkipStopCommand(timing_point_id="nowhere"))
     assert unknown == "nowhere is not a stopping point ahead on the journey"
-    assert onboard.refusal(m.TrainHoldCommand(hold=True)) is None
+    assert command_refusal(onboard, m.TrainHoldCommand(hold=True)) is None
     onboard.train_hold(True, 0.0)
     assert onboard.driving.hold
 

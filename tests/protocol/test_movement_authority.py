@@ -9,7 +9,7 @@ from hypothesis import given
 from pydantic import ValidationError
 
 from onboard.etcs import EtcsOnboard, MaChange
-from onboard.stack import authority_from_extent
+from onboard.rbc_messages import authority_from_extent
 from protocol import messages as m
 from protocol.registry import MOVEMENT_AUTHORITY, MOVEMENT_AUTHORITY_CURRENT
 from tests.protocol.strategies import movement_authority_messages, movement_authority_replies

@@ -1,0 +1,205 @@
+"""The trackside of a whole-stack run, and the REST calls the operator and the RBC make.
+
+The trackside service runs in this process (its FastAPI app behind a ``TestClient``, on a
+SQLite file in the run's scratch directory, on the run's Zenoh session). The harness logs in as
+an admin, holds the vehicle as a driver at the console does, and makes the REST calls of the
+scenario: movement authorities and TSRs through the RBC's routes, journeys, commands. After
+each call that sends the vehicle a message it waits, in wall time, until the vehicle has it, so
+that the message is taken at a tick fixed by simulated time.
+"""
+
+from __future__ import annotations
+
+import secrets
+import threading
+from pathlib import Path
+from typing import Any
+
+import zenoh
+from fastapi.testclient import TestClient
+
+from deploy.scenario.run_context import RunContext, ScenarioRunError, forward_m, wait_for
+from deploy.scenario.schema import TemporarySpeedRestriction
+from protocol.units import MPS_PER_KMH
+from trackside.config import Settings
+from trackside.main import create_app
+
+__all__ = ["JOURNEY_TIMEOUT_S", "TracksideHarness"]
+
+JOURNEY_TIMEOUT_S = 10.0
+"""How long the operator waits for the vehicle's journey acknowledgement [s, simulated]."""
+SLICE_S = 0.2
+"""The slice run while a journey is sent (one control period) [s]."""
+
+
+class TracksideHarness:
+    """The trackside service of one run, on a database in ``scratch``."""
+
+    def __init__(self, ctx: RunContext, scratch: Path, zenoh_session: zenoh.Session) -> None:
+        self.ctx = ctx
+        self.zenoh_session = zenoh_session
+        spec = ctx.spec
+        simulated = (spec.vehicle.id,) if spec.operator.simulated else ()
+        self.settings = Settings(
+            database_url=f"sqlite:///{scratch / 'trackside.db'}",
+            zenoh_connect=(),
+            admin_user="scenario",
+            admin_password=secrets.token_urlsafe(16),
+            simulated_operators=simulated,
+            simulated_operator_reaction_s=spec.operator.reaction_s,
+            simulated_operator_thread=False,
+        )
+        self.client: TestClient | None = None
+        self.headers: dict[str, str] = {}
+        self._selected = False
+
+    # -- life cycle ------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """The service (a new app on the same database and Zenoh session), and a login."""
+        client = TestClient(create_app(self.settings, zenoh_session=self.zenoh_session))
+        client.__enter__()
+        self.client = client
+        password = self.settings.admin_password
+        assert password is not None
+        answer = client.post(
+            "/api/v1/auth/token",
+            data={"username": "scenario", "password": password.get_secret_value()},
+        )
+        self.headers = {"Authorization": f"Bearer {answer.json()['access_token']}"}
+        self._selected = False
+
+    def stop(self) -> None:
+        if self.client is not None:
+            self.client.__exit__(None, None, None)
+            self.client = None
+
+    @property
+    def rest(self) -> TestClient:
+        if self.client is None:
+            raise ScenarioRunError("the trackside is down")
+        return self.client
+
+    @property
+    def simulated_operator(self) -> Any:
+        """The trackside's simulated operator (None: none, or the trackside is down)."""
+        if self.client is None:
+            return None
+        return self.client.app.state.simulated_operator  # type: ignore[attr-defined]
+
+    def select(self) -> None:
+        """Hold the vehicle, as a driver at the console does before commanding it (once the
+        trackside has seen it; the hold is stored, selecting again is harmless)."""
+        if self._selected:
+            return
+        url = f"/api/v1/vehicles/{self.ctx.spec.vehicle.id}"
+        if not wait_for(lambda: self.rest.get(url, headers=self.headers).status_code == 200):
+            raise ScenarioRunError("the trackside never saw the vehicle")
+        selected = self.rest.post(f"{url}/select", headers=self.headers)
+        if selected.status_code != 200:
+            raise ScenarioRunError(f"cannot select the vehicle: {selected.text[:200]}")
+        self._selected = True
+
+    # -- the RBC ---------------------------------------------------------------------------------
+
+    def speed_restriction(self, restriction_id: str, fault: TemporarySpeedRestriction) -> None:
+        """The RBC (REST, as admin) sends a TSR; the run goes on once the vehicle has it."""
+        ctx = self.ctx
+        before = ctx.node.inputs_received[2]
+        body = {
+            "id": restriction_id,
+            "line_id": ctx.spec.line,
+            "start_m": fault.start_m,
+            "end_m": fault.end_m,
+            "speed_kmh": fault.speed_kmh,
+        }
+        answer = self.rest.post(
+            f"/api/v1/rbc/{ctx.spec.vehicle.id}/tsr", json=body, headers=self.headers
+        )
+        accepted = answer.status_code == 201
+        ctx.log("rbc.tsr", accepted, answer.text[:200])
+        if not accepted:
+            ctx.failures.append(f"TSR {restriction_id} refused: {answer.text[:200]}")
+        elif not wait_for(lambda: ctx.node.inputs_received[2] > before):
+            raise ScenarioRunError("the RBC's TSR never reached the vehicle")
+
+    def movement_authority(
+        self, end_m: float, *, absolute: bool = False, danger_point_m: float = 0.0
+    ) -> Any:
+        """The RBC (REST, as admin) issues an MA from here to ``end_m`` (a chainage, or with
+        ``absolute`` a position already unwrapped from here), or shortens the one it holds, its
+        new end with ``danger_point_m``; the run goes on once the vehicle has the message."""
+        node = self.ctx.node
+        here = node.track_map.normalise(node.plant.position_m)
+        if not absolute:
+            end_m = here + forward_m(node, here, end_m)
+        url = f"/api/v1/rbc/{self.ctx.spec.vehicle.id}/ma"
+        before = node.inputs_received[1]
+        if self.rest.get(url, headers=self.headers).status_code == 404 or not absolute:
+            body = {
+                "start_m": here,
+                "end_of_authority_m": end_m,
+                "line_id": self.ctx.spec.line,
+                "danger_point_m": danger_point_m,
+            }
+            answer = self.rest.post(url, json=body, headers=self.headers)
+        else:
+            end = {"end_of_authority_m": end_m, "danger_point_m": danger_point_m}
+            answer = self.rest.post(f"{url}/shorten", json=end, headers=self.headers)
+        if answer.status_code in (200, 201) and not wait_for(
+            lambda: node.inputs_received[1] > before
+        ):
+            raise ScenarioRunError("the RBC's MA never reached the vehicle")
+        return answer
+
+    # -- the driver ------------------------------------------------------------------------------
+
+    def command(self, route: str, body: dict[str, Any]) -> Any:
+        """A remote-driver command through ``/vehicles/{id}/{route}``; the HTTP answer."""
+        return self.rest.post(
+            f"/api/v1/vehicles/{self.ctx.spec.vehicle.id}/{route}", json=body, headers=self.headers
+        )
+
+    def send_journey(self) -> tuple[bool, str | None]:
+        """Store the journey from where the vehicle stands, and send it through the REST API
+        while the vehicle runs (it answers at its next commands tick)."""
+        ctx = self.ctx
+        journey = ctx.spec.journey
+        assert journey is not None
+        body = {
+            "id": journey.id,
+            "line_id": ctx.spec.line,
+            "start_position_m": ctx.node.track_map.normalise(ctx.node.plant.position_m),
+            "max_speed_mps": (
+                None if journey.max_speed_kmh is None else journey.max_speed_kmh * MPS_PER_KMH
+            ),
+            "timing_points": [p.model_dump(mode="json") for p in journey.timing_points],
+        }
+        stored = self.rest.post("/api/v1/journeys", json=body, headers=self.headers)
+        if stored.status_code != 201:
+            return False, f"journey not stored ({stored.status_code}): {stored.text}"
+        answer: list[Any] = []
+
+        def send() -> None:
+            answer.append(
+                self.command(
+                    "journey-profile", {"journey_id": journey.id, "timeout_s": JOURNEY_TIMEOUT_S}
+                )
+            )
+
+        journeys_before = ctx.node.inputs_received[0]
+        sender = threading.Thread(target=send, daemon=True)
+        sender.start()
+        # The profile reaches the node between slices; the next slice takes it and answers, so
+        # the run does not depend on how fast the messages travel.
+        received = wait_for(lambda: ctx.node.inputs_received[0] > journeys_before, sender)
+        if received:
+            ctx.run_for(SLICE_S)
+        sender.join(JOURNEY_TIMEOUT_S)
+        if not answer:
+            return False, "the trackside did not answer"
+        response = answer[0]
+        if response.status_code != 200:
+            return False, f"{response.status_code}: {response.text}"
+        reply = response.json()
+        return bool(reply["accepted"]), reply.get("reason")

@@ -1,0 +1,104 @@
+"""What the trackside sent, taken on board at the ``commands`` tick: the line's version, journey
+profiles, the RBC's movement authorities and speed restrictions.
+
+Messages wait in the ports' queues (and the line version's answer in :class:`TracksideIntake`)
+until :meth:`TracksideIntake.take`, so that what they change happens at a tick of simulated time.
+Each is handed to the onboard stack and logged as an event; what the stack refuses is logged
+with its reason, never raised.
+"""
+
+from __future__ import annotations
+
+import threading
+
+from onboard.etcs import EtcsError
+from onboard.ports import TracksidePorts
+from onboard.runtime.clock import NS_PER_S
+from onboard.session import SessionClient
+from onboard.session_link import Emit
+from onboard.stack import OnboardStack
+from protocol import messages as m
+
+__all__ = ["TracksideIntake"]
+
+_INFO, _WARNING = m.EventSeverity.INFO, m.EventSeverity.WARNING
+
+
+class TracksideIntake:
+    """Hands the trackside's messages to the stack at the tick they are taken."""
+
+    def __init__(
+        self, ports: TracksidePorts, stack: OnboardStack, client: SessionClient, *, emit: Emit
+    ) -> None:
+        self.ports = ports
+        self.stack = stack
+        self.client = client
+        self._emit = emit
+        self._line_version: m.LineVersionReply | None = None
+        self._lock = threading.Lock()
+
+    def on_line_version(self, reply: m.LineVersionReply) -> None:
+        """The trackside's line version, on Zenoh's thread: taken at the next :meth:`take`."""
+        with self._lock:
+            self._line_version = reply
+
+    def take(self, now_ns: int) -> None:
+        """The line version, the journey profiles, the MAs and the TSRs received, in that order."""
+        self._take_line_version(now_ns)
+        self._take_journeys(now_ns)
+        self._take_authorities(now_ns)
+        self._take_speed_restrictions(now_ns)
+
+    def _take_line_version(self, now_ns: int) -> None:
+        with self._lock:
+            reply, self._line_version = self._line_version, None
+        if reply is None:
+            return
+        database = self.stack.track_database
+        matched_before = database.versions_match
+        database.record_trackside_version(reply)
+        if database.versions_match != matched_before or reply.version is None:
+            code = "track_data.match" if database.versions_match else "track_data.differ"
+            severity = _INFO if database.versions_match else _WARNING
+            text = f"trackside {reply.version or 'unknown'} onboard {database.onboard_version}"
+            self._emit(severity, code, text, now_ns)
+
+    def _take_journeys(self, now_ns: int) -> None:
+        now_s = now_ns / NS_PER_S
+        for profile in self.ports.received_journeys():
+            what = f"journey {profile.journey_id} v{profile.version}"
+            if not self.client.on_journey_profile(profile, now_s):
+                self._emit(_WARNING, "journey.stale", f"{what} dropped", now_ns)
+                continue
+            accepted, reason = self.stack.review_journey(profile)
+            self.ports.acknowledge_journey(
+                m.JourneyProfileAck(
+                    vehicle_id=self.ports.vehicle_id,
+                    journey_id=profile.journey_id,
+                    version=profile.version,
+                    accepted=accepted,
+                    reason=reason,
+                )
+            )
+            if accepted:
+                self._emit(_INFO, "journey.accepted", f"{what} accepted", now_ns)
+            else:
+                self._emit(_WARNING, "journey.refused", f"{what} refused: {reason}", now_ns)
+
+    def _take_authorities(self, now_ns: int) -> None:
+        for message in self.ports.received_authorities():
+            try:
+                what = self.stack.receive_movement_authority(message, now_ns / NS_PER_S)
+            except EtcsError as exc:
+                self._emit(_WARNING, "etcs.ma_refused", str(exc), now_ns)
+                continue
+            self._emit(_INFO, "etcs.ma", f"MA {message.ma_id} {what}", now_ns)
+
+    def _take_speed_restrictions(self, now_ns: int) -> None:
+        for message in self.ports.received_restrictions():
+            try:
+                what = self.stack.receive_speed_restriction(message, now_ns / NS_PER_S)
+            except ValueError as exc:
+                self._emit(_WARNING, "etcs.tsr_refused", str(exc), now_ns)
+                continue
+            self._emit(_INFO, "etcs.tsr", what, now_ns)
