@@ -166,7 +166,8 @@ class AutonomousDriving:
         if speeds[-1] > 0.0:
             self._final_braking_mps2 = None
             return math.inf
-        rest = speeds.index(0.0)
+        # The first stage at rest: a replanned profile may end a hair below zero, not at it.
+        rest = next(k for k, speed in enumerate(speeds) if speed <= 0.0)
         if rest >= 2:  # the reference's deceleration just before it comes to rest
             self._final_braking_mps2 = (speeds[rest - 2] - speeds[rest - 1]) / self._step_s
         braking = self._final_braking_mps2

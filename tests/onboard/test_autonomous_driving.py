@@ -112,3 +112,31 @@ def test_the_final_approach_brakes_to_the_point_when_faster_than_the_plan() -> N
     assert driving.stopping_force_n(now_s, distance_m, speed_mps - 0.5) == np.inf  # type: ignore[attr-defined]
     force = driving.stopping_force_n(now_s, distance_m, speed_mps + 1.0)  # type: ignore[attr-defined]
     assert -URV_PARAMETERS.max_brake_force_n <= force < 0.0
+
+
+def test_the_final_approach_takes_a_reference_ending_a_hair_below_zero() -> None:
+    """A replanned profile may come to rest at −1e-15 m/s rather than at 0 (a generated run
+    crashed on "0.0 is not in list"): the stage at rest is the first at or below zero."""
+    from onboard.adf.autonomous import AutonomousDriving
+    from onboard.adf.odp import OdpLeg, OdpPlan
+
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    lspb = plan_legs(ring, start_chainage_m=START_M, stops=STOPS[:1], cap_mps=CAP_MPS)
+    segment = lspb.legs[0].segment
+
+    class BelowZero:
+        distance_m, duration_s = segment.distance_m, segment.duration_s
+
+        def at(self, t_s: float) -> tuple[float, float]:
+            distance, speed = segment.at(t_s)
+            return distance, speed if speed > 0.0 else -1e-15
+
+    plan = OdpPlan(
+        [OdpLeg(0.0, 0.0, BelowZero())], start_chainage_m=START_M, track_map=ring, cap_mps=CAP_MPS
+    )
+    driving = AutonomousDriving(plan, URV_PARAMETERS, NmpcController(URV_PARAMETERS))
+    now_s = segment.duration_s - 8.0
+    distance_m, speed_mps = plan.reference(now_s)
+    driving.stopping_force_n(now_s - 0.2, distance_m, speed_mps)
+    force = driving.stopping_force_n(now_s, distance_m, speed_mps + 1.0)
+    assert -URV_PARAMETERS.max_brake_force_n <= force < 0.0
