@@ -3,7 +3,8 @@
 Point queries (gradient, curvature, line speed, MRSP) are pure Python over precomputed lists
 with :mod:`bisect`: each costs about a microsecond, which numpy's per-call overhead would
 exceed. Numpy serves where a query vectorises: the MRSP sampled at many distances for the
-planners, and the global GPS projection (see :mod:`trackdb._geometry`).
+planners, and the global GPS projection (see :mod:`trackdb._geometry`). The step functions, the
+MRSP's construction and the walks ahead across a ring's origin are in :mod:`trackdb._profiles`.
 
 Every query takes any chainage [m]: on a ring it wraps at the line's length, on an open line it
 is clamped to the line. Distances ahead are counted in the direction of increasing chainage, and
@@ -19,20 +20,20 @@ from __future__ import annotations
 
 import bisect
 import math
-from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
 from trackdb._exceptions import NoGeodeticPolylineError
 from trackdb._geometry import GeodeticPolyline, GpsProjection
-from trackdb.schema import (
-    BaliseGroup,
-    Line,
-    ProfileSection,
-    StoppingPoint,
-    TemporarySpeedRestriction,
+from trackdb._profiles import (
+    Profile,
+    SpeedSection,
+    build_mrsp,
+    points_ahead,
+    window_sections,
 )
+from trackdb.schema import BaliseGroup, Line, StoppingPoint, TemporarySpeedRestriction
 
 __all__ = ["DEFAULT_MAX_CROSS_TRACK_M", "DEFAULT_WINDOW_M", "SpeedSection", "TrackMap"]
 
@@ -40,43 +41,6 @@ DEFAULT_WINDOW_M = 250.0
 """Half-width [m] of the chainage window of a bounded GPS projection."""
 DEFAULT_MAX_CROSS_TRACK_M = 50.0
 """Cross-track distance [m] beyond which a bounded GPS projection is checked globally."""
-
-
-class SpeedSection(NamedTuple):
-    """A constant speed [m/s] from ``from_distance_m`` to ``to_distance_m`` [m] ahead."""
-
-    from_distance_m: float
-    to_distance_m: float
-    speed_mps: float
-
-
-class _Profile:
-    """Piecewise-constant lookup by bisection over section starts."""
-
-    def __init__(self, sections: tuple[ProfileSection, ...], default: float) -> None:
-        self._starts = [section.start_m for section in sections]
-        self._ends = [section.end_m for section in sections]
-        self._values = [section.value for section in sections]
-        self._default = default
-
-    def at(self, chainage_m: float) -> float:
-        index = bisect.bisect_right(self._starts, chainage_m) - 1
-        if index >= 0 and chainage_m < self._ends[index]:
-            return self._values[index]
-        return self._default
-
-
-class _Steps:
-    """A step function covering ``[0, length_m)``: ``values[i]`` from ``starts[i]`` on."""
-
-    __slots__ = ("ends", "starts", "starts_array", "values", "values_array")
-
-    def __init__(self, starts: list[float], values: list[float], length_m: float) -> None:
-        self.starts = starts
-        self.values = values
-        self.ends = [*starts[1:], length_m]
-        self.starts_array = np.asarray(starts, dtype=np.float64)
-        self.values_array = np.asarray(values, dtype=np.float64)
 
 
 class TrackMap:
@@ -94,11 +58,11 @@ class TrackMap:
         self._ring = line.ring
         self._length_m = line.length_m
         self._last_m = math.nextafter(line.length_m, 0.0)
-        self._gradient = _Profile(line.gradient_permille, 0.0)
-        self._radius = _Profile(line.curve_radius_m, math.inf)
-        self._speed = _Profile(line.speed_limit_mps, 0.0)
+        self._gradient = Profile(line.gradient_permille, 0.0)
+        self._radius = Profile(line.curve_radius_m, math.inf)
+        self._speed = Profile(line.speed_limit_mps, 0.0)
         self._restrictions = {tsr.id: tsr for tsr in line.temporary_speed_restrictions}
-        self._mrsp = self._build_mrsp(self._restrictions)
+        self._mrsp = build_mrsp(line, self._speed, self._restrictions)
         self._stops = sorted(line.stopping_points, key=lambda point: point.position_m)
         self._stop_positions_m = [point.position_m for point in self._stops]
         self._groups = sorted(line.balise_groups, key=lambda group: group.position_m)
@@ -159,7 +123,7 @@ class TrackMap:
                 f" range on line {self.line.id!r} (0..{self._length_m} m)"
             )
         restrictions = {**self._restrictions, restriction.id: restriction}
-        self._mrsp = self._build_mrsp(restrictions)
+        self._mrsp = build_mrsp(self.line, self._speed, restrictions)
         self._restrictions = restrictions
 
     def revoke_temporary_speed_restriction(self, restriction_id: str) -> bool:
@@ -168,26 +132,9 @@ class TrackMap:
             return False
         restrictions = dict(self._restrictions)
         del restrictions[restriction_id]
-        self._mrsp = self._build_mrsp(restrictions)
+        self._mrsp = build_mrsp(self.line, self._speed, restrictions)
         self._restrictions = restrictions
         return True
-
-    def _build_mrsp(self, restrictions: dict[str, TemporarySpeedRestriction]) -> _Steps:
-        """The SSP lowered by every TSR, merged into steps over ``[0, length_m)``."""
-        cuts = {section.start_m for section in self.line.speed_limit_mps}
-        for restriction in restrictions.values():
-            cuts.update((restriction.start_m, restriction.end_m))
-        starts: list[float] = []
-        values: list[float] = []
-        for start_m in sorted(cut for cut in cuts if cut < self._length_m):
-            speed_mps = self._speed.at(start_m)
-            for restriction in restrictions.values():
-                if restriction.start_m <= start_m < restriction.end_m:
-                    speed_mps = min(speed_mps, restriction.speed_mps)
-            if not values or values[-1] != speed_mps:
-                starts.append(start_m)
-                values.append(speed_mps)
-        return _Steps(starts, values, self._length_m)
 
     def mrsp_mps(self, chainage_m: float) -> float:
         """MRSP [m/s] at the chainage: the lowest of the SSP and the TSRs in force there."""
@@ -219,24 +166,7 @@ class TrackMap:
         else:
             origin_m = min(max(start_m, 0.0), self._length_m)
             limit_m = min(length_m, self._length_m - origin_m)
-        steps = self._mrsp
-        index = max(bisect.bisect_right(steps.starts, origin_m) - 1, 0)
-        sections: list[SpeedSection] = []
-        lap_m = from_m = 0.0
-        while from_m < limit_m:
-            # Measured from the window's origin in unwrapped chainage, so that the ends grow
-            # with every step and the loop ends whatever the rounding.
-            to_m = min(lap_m + steps.ends[index] - origin_m, limit_m)
-            speed_mps = steps.values[index]
-            if sections and sections[-1].speed_mps == speed_mps:
-                sections[-1] = SpeedSection(sections[-1].from_distance_m, to_m, speed_mps)
-            elif to_m > from_m:
-                sections.append(SpeedSection(from_m, to_m, speed_mps))
-            from_m = max(from_m, to_m)
-            index += 1
-            if index == len(steps.values):
-                index, lap_m = 0, lap_m + self._length_m
-        return sections
+        return window_sections(self._mrsp, origin_m, limit_m, self._length_m)
 
     def mrsp_ahead_mps(self, start_m: float, distances_m: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """MRSP [m/s] at distances [m] from ``start_m``, vectorised for planners.
@@ -318,22 +248,13 @@ class TrackMap:
             Each group with its distance [m] ahead, in the order the train meets them. On a
             ring a window longer than the ring meets a group once per lap.
         """
-        positions_m = self._group_positions_m
-        position_m = self.normalise(chainage_m)
-        index = bisect.bisect_left(positions_m, position_m)
-        ahead: list[tuple[BaliseGroup, float]] = []
-        lap_m = 0.0
-        while positions_m:
-            if index == len(positions_m):
-                if not self._ring:
-                    break
-                index, lap_m = 0, lap_m + self._length_m
-            group_distance_m = lap_m + positions_m[index] - position_m
-            if group_distance_m > distance_m:
-                break
-            ahead.append((self._groups[index], group_distance_m))
-            index += 1
-        return ahead
+        return points_ahead(
+            self._groups,
+            self._group_positions_m,
+            self.normalise(chainage_m),
+            distance_m,
+            ring_length_m=self._length_m if self._ring else None,
+        )
 
     # -- geodesy ------------------------------------------------------------------------------
 

@@ -5,8 +5,13 @@ from __future__ import annotations
 import gc
 import logging
 import time
-from collections.abc import AsyncIterator
-from contextlib import AbstractContextManager, asynccontextmanager, nullcontext
+from collections.abc import AsyncIterator, Callable
+from contextlib import (
+    AbstractAsyncContextManager,
+    AbstractContextManager,
+    asynccontextmanager,
+    nullcontext,
+)
 from functools import partial
 from importlib import resources
 from pathlib import Path
@@ -15,6 +20,7 @@ import zenoh
 from fastapi import APIRouter, FastAPI
 from fastapi.responses import FileResponse
 from fastapi.staticfiles import StaticFiles
+from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
 from protocol import open_session
@@ -32,7 +38,12 @@ from trackside.live import LiveHub
 from trackside.models import Role
 from trackside.ratelimit import LoginLimiter
 from trackside.rbc import LineInfo, RbcEmulator
-from trackside.rbc_scenario import RbcScenarioRunner, RbcScenarioThread, load_scenario
+from trackside.rbc_scenario import (
+    RbcScenario,
+    RbcScenarioRunner,
+    RbcScenarioThread,
+    load_scenario,
+)
 from trackside.recorder import Recorder
 from trackside.services import audit, users
 from trackside.services import lines as lines_service
@@ -45,6 +56,9 @@ from trackside.simulated_operator import (
 )
 
 __all__ = ["create_app", "main"]
+
+Lifespan = Callable[[FastAPI], AbstractAsyncContextManager[None]]
+"""What FastAPI runs around the service's life: start-up before ``yield``, shutdown after."""
 
 _log = logging.getLogger(__name__)
 
@@ -141,17 +155,75 @@ def _simulated_operator(
     )
 
 
-def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None) -> FastAPI:
-    """Build the service. Without ``zenoh_session`` it opens (and closes) its own."""
+def _prepare_database(settings: Settings, engine: Engine) -> sessionmaker[Session]:
+    """Migrate the database, then add the bootstrap admin and the seed lines it lacks."""
+    migrate(engine)
+    factory = sessionmaker(engine, expire_on_commit=False)
+    _bootstrap_admin(settings, factory)
+    _seed_lines(settings, factory)
+    return factory
+
+
+def _open_zenoh(
+    settings: Settings, zenoh_session: zenoh.Session | None
+) -> AbstractContextManager[zenoh.Session]:
+    """The session given (left open at the end), else one of the service's own."""
+    if zenoh_session is not None:
+        return nullcontext(zenoh_session)
+    return open_session(settings.zenoh())
+
+
+def _start_bridge(
+    app: FastAPI,
+    settings: Settings,
+    session: zenoh.Session,
+    factory: sessionmaker[Session],
+    recorder: Recorder,
+    hub: LiveHub,
+) -> ZenohBridge:
+    """The Zenoh bridge, its telemetry fanned out to the recorder and the browsers."""
+    bridge = ZenohBridge(
+        session,
+        instance_id=settings.instance_id,
+        line_version=lambda line_id: _line_version(factory, line_id),
+    )
+    app.state.bridge = bridge
+    bridge.observe(status=recorder.offer_status, event=recorder.offer_event)
+    bridge.observe(status=hub.publish_status, event=hub.publish_event)
+    app.state.commands = CommandService(factory, bridge, timeout_s=settings.command_timeout_s)
+    return bridge
+
+
+def _start_rbc(
+    app: FastAPI,
+    session: zenoh.Session,
+    factory: sessionmaker[Session],
+    bridge: ZenohBridge,
+    script: RbcScenario | None,
+) -> tuple[RbcEmulator, RbcScenarioThread | None]:
+    """The RBC emulator on the service's clock, and the thread of its scenario if one is set."""
+    started_s = time.monotonic()
+    rbc_emulator = RbcEmulator(
+        clock=lambda: time.monotonic() - started_s,
+        session=session,
+        line_info=partial(_line_info, factory),
+        positions=partial(_reported_status, bridge),
+    )
+    app.state.rbc = rbc_emulator
+    scenario = None
+    if script is not None:
+        scenario = RbcScenarioThread(RbcScenarioRunner(script, rbc_emulator))
+    return rbc_emulator, scenario
+
+
+def _lifespan(settings: Settings, zenoh_session: zenoh.Session | None) -> Lifespan:
+    """Start-up and shutdown of the service: the database, Zenoh, the bridge, the RBC."""
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         script = None if settings.rbc_scenario is None else load_scenario(settings.rbc_scenario)
         engine = create_database_engine(settings.database_url)
-        migrate(engine)
-        factory = sessionmaker(engine, expire_on_commit=False)
-        _bootstrap_admin(settings, factory)
-        _seed_lines(settings, factory)
+        factory = _prepare_database(settings, engine)
         app.state.settings = settings
         app.state.session_factory = factory
         app.state.login_limiter = LoginLimiter(
@@ -161,36 +233,11 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
         app.state.recorder = recorder
         hub = LiveHub()
         app.state.live = hub
-        sessions: AbstractContextManager[zenoh.Session] = (
-            nullcontext(zenoh_session)
-            if zenoh_session is not None
-            else open_session(settings.zenoh())
-        )
-        with sessions as session:
-            bridge = ZenohBridge(
-                session,
-                instance_id=settings.instance_id,
-                line_version=lambda line_id: _line_version(factory, line_id),
-            )
-            app.state.bridge = bridge
-            bridge.observe(status=recorder.offer_status, event=recorder.offer_event)
-            bridge.observe(status=hub.publish_status, event=hub.publish_event)
-            app.state.commands = CommandService(
-                factory, bridge, timeout_s=settings.command_timeout_s
-            )
+        with _open_zenoh(settings, zenoh_session) as session:
+            bridge = _start_bridge(app, settings, session, factory, recorder, hub)
             operator = _simulated_operator(settings, bridge, recorder)
             app.state.simulated_operator = operator
-            started_s = time.monotonic()
-            rbc_emulator = RbcEmulator(
-                clock=lambda: time.monotonic() - started_s,
-                session=session,
-                line_info=partial(_line_info, factory),
-                positions=partial(_reported_status, bridge),
-            )
-            app.state.rbc = rbc_emulator
-            scenario = None
-            if script is not None:
-                scenario = RbcScenarioThread(RbcScenarioRunner(script, rbc_emulator))
+            rbc_emulator, scenario = _start_rbc(app, session, factory, bridge, script)
             # What start-up built lives as long as the service: keep it out of the cyclic
             # collector's full passes, which otherwise stall requests for tens of ms.
             gc.freeze()
@@ -206,13 +253,11 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
                 recorder.close()
                 engine.dispose()
 
-    app = FastAPI(
-        title="ATO-TS",
-        summary="Trackside service of the ato GoA4 ATO over ETCS stack",
-        version="0.1.0",
-        lifespan=lifespan,
-    )
-    add_exception_handlers(app)
+    return lifespan
+
+
+def _api_router() -> APIRouter:
+    """Every resource's routes, under ``/api/v1``."""
     api = APIRouter(prefix="/api/v1")
     api.include_router(auth.router)
     api.include_router(users_routes.router)
@@ -222,26 +267,44 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
     api.include_router(rbc.router)
     api.include_router(audit_routes.router)
     api.include_router(ws.router)
-    app.include_router(api)
+    return api
 
+
+def _add_health_route(app: FastAPI) -> None:
     @app.get("/healthz", tags=["health"])
     def health() -> dict[str, str]:
         """Liveness of the service itself (no authentication)."""
         return {"status": "ok"}
 
-    webui = settings.webui_dir
-    if webui.is_dir():
-        app.mount("/static", StaticFiles(directory=webui), name="static")
 
-        @app.get("/", include_in_schema=False)
-        def index() -> FileResponse:
-            return FileResponse(webui / "index.html")
+def _add_web_console(app: FastAPI, webui: Path) -> None:
+    """Serve the web console's static files, when the directory is there."""
+    if not webui.is_dir():
+        return
+    app.mount("/static", StaticFiles(directory=webui), name="static")
 
-        @app.get("/vendor/plotly.min.js", include_in_schema=False)
-        def plotly_js() -> FileResponse:
-            """The charting library, as its PyPI wheel ships it (not copied into the repo)."""
-            return FileResponse(_plotly_js(), media_type="text/javascript")
+    @app.get("/", include_in_schema=False)
+    def index() -> FileResponse:
+        return FileResponse(webui / "index.html")
 
+    @app.get("/vendor/plotly.min.js", include_in_schema=False)
+    def plotly_js() -> FileResponse:
+        """The charting library, as its PyPI wheel ships it (not copied into the repo)."""
+        return FileResponse(_plotly_js(), media_type="text/javascript")
+
+
+def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None) -> FastAPI:
+    """Build the service. Without ``zenoh_session`` it opens (and closes) its own."""
+    app = FastAPI(
+        title="ATO-TS",
+        summary="Trackside service of the ato GoA4 ATO over ETCS stack",
+        version="0.1.0",
+        lifespan=_lifespan(settings, zenoh_session),
+    )
+    add_exception_handlers(app)
+    app.include_router(_api_router())
+    _add_health_route(app)
+    _add_web_console(app, settings.webui_dir)
     return app
 
 

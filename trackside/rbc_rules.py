@@ -2,9 +2,11 @@
 
 Pure functions used by :class:`trackside.rbc.RbcEmulator`: where an MA may lie on a line
 (:func:`check_on_line`), where a reported position lies relative to an MA on a ring
-(:func:`unwrapped`), how a shortening cuts the sections (:func:`cut_sections`), and pydantic's
+(:func:`unwrapped`), what an extension or a shortening makes of an MA (:func:`extended`,
+:func:`shortened`, which cuts the sections with :func:`cut_sections`), and pydantic's
 validation errors turned into a refusal that lists them (:func:`built`,
-:func:`speed_restriction`).
+:func:`speed_restriction`). :mod:`trackside.rbc_checks` applies them with the lines and
+positions the trackside knows.
 """
 
 from __future__ import annotations
@@ -27,8 +29,10 @@ __all__ = [
     "check_on_line",
     "check_vehicle_id",
     "cut_sections",
+    "extended",
     "extent_from",
     "rebuilt",
+    "shortened",
     "speed_restriction",
     "unwrapped",
 ]
@@ -137,6 +141,48 @@ def cut_sections(
         kept.append(section)
         start_m = end_m
     return tuple(kept)
+
+
+def extended(
+    old: m.MovementAuthorityExtent, end: m.MovementAuthorityEnd
+) -> m.MovementAuthorityExtent:
+    """The MA ``old`` with its EoA moved forward to ``end`` (and the new end's attributes).
+
+    The start stays; sections, if the MA has them, gain one up to the new EoA, without a timer.
+    """
+    if not end.end_of_authority_m > old.end_of_authority_m:
+        raise MovementAuthorityRefusedError(
+            f"an extension must move the EoA forward: {end.end_of_authority_m:g} m "
+            f"is not beyond the current EoA at {old.end_of_authority_m:g} m"
+        )
+    sections = old.sections
+    if sections:
+        added_m = end.end_of_authority_m - old.end_of_authority_m
+        sections = (*sections, m.MovementAuthoritySection(length_m=added_m))
+    return built(lambda: extent_from(old.start_m, end, sections, None))
+
+
+def shortened(
+    old: m.MovementAuthorityExtent, end: m.MovementAuthorityEnd
+) -> m.MovementAuthorityExtent:
+    """The MA ``old`` with its EoA moved back to ``end`` (and the new end's attributes).
+
+    The start and the track description stay; sections beyond the new EoA are dropped and the
+    one it falls in is cut there.
+    """
+    eoa_m = end.end_of_authority_m
+    if not eoa_m < old.end_of_authority_m:
+        raise MovementAuthorityRefusedError(
+            f"a shortening must move the EoA back: {eoa_m:g} m is not before the current "
+            f"EoA at {old.end_of_authority_m:g} m"
+        )
+    if not eoa_m > old.start_m:
+        raise MovementAuthorityRefusedError(
+            f"a shortened EoA must stay beyond the MA's start at {old.start_m:g} m, "
+            f"not {eoa_m:g} m; revoke the MA instead"
+        )
+    sections = cut_sections(old.sections, eoa_m - old.start_m)
+    return built(lambda: extent_from(old.start_m, end, sections, old.track_description_m))
 
 
 def check_on_line(extent: m.MovementAuthorityExtent, line_id: str, info: LineInfo | None) -> None:
