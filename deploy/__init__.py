@@ -2,3 +2,7 @@
 
 The only package that may import both ``onboard`` and ``trackside``.
 """
+
+from deploy._exceptions import DeployError
+
+__all__ = ["DeployError"]

@@ -40,6 +40,8 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from typing import IO, TYPE_CHECKING, Any, Literal, Self
 
+from deploy._exceptions import DeployError
+
 if TYPE_CHECKING:
     # Imported where the parent starts the child: the child itself runs on the standard library.
     from deploy.processes import ChildProcess
@@ -54,7 +56,7 @@ ANSWER_TIMEOUT_S = 5.0
 """How long the child may take to answer a request [s]."""
 
 
-class LinkProxyError(OSError):
+class LinkProxyError(DeployError, OSError):
     """The proxy could not start, or did not answer in time."""
 
 

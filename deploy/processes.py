@@ -26,6 +26,8 @@ from pathlib import Path
 from types import FrameType
 from typing import IO, TYPE_CHECKING, Self
 
+from deploy._exceptions import DeployError
+
 if TYPE_CHECKING:
     from onboard.node import Fidelity
     from protocol import ZenohSettings
@@ -49,7 +51,7 @@ READY_POLL_S = 0.1
 _PR_SET_PDEATHSIG = 1
 
 
-class ChildError(RuntimeError):
+class ChildError(DeployError, RuntimeError):
     """A child is not as asked: not started, or not ready (it exited, the wait for it timed out
     or was interrupted)."""
 

@@ -5,3 +5,7 @@ through ``protocol`` messages over Zenoh. Never imports ``trackside``.
 Abbreviations: ADF (autonomous driving function), SC (its supervisory controller), RD / AD
 (remote / autonomous driving).
 """
+
+from onboard._exceptions import AdfError, OnboardError
+
+__all__ = ["AdfError", "OnboardError"]

@@ -11,6 +11,7 @@ from contextlib import contextmanager
 
 import pytest
 import zenoh
+from hypothesis import settings
 from sqlalchemy import create_engine, text
 from sqlalchemy.engine import make_url
 
@@ -19,6 +20,11 @@ from protocol import ZenohSettings, open_session
 from protocol.router import run_router
 
 WAIT_S = 5.0
+
+# No wall-clock deadline on hypothesis examples: the suite asserts behaviour, not speed, and a
+# loaded machine (CI, a campaign alongside) makes a 200 ms deadline fail at random.
+settings.register_profile("ato", deadline=None)
+settings.load_profile("ato")
 
 
 def wait_for(

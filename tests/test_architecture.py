@@ -58,7 +58,7 @@ def _modules(package: str) -> list[str]:
     return names
 
 
-@pytest.mark.parametrize("name", [n for p in ("protocol", "trackdb") for n in _modules(p)])
+@pytest.mark.parametrize("name", [n for p in PACKAGES for n in _modules(p)])
 def test_all_lists_exist(name: str) -> None:
     module = importlib.import_module(name)
     exported = getattr(module, "__all__", None)
@@ -67,13 +67,32 @@ def test_all_lists_exist(name: str) -> None:
     assert missing == []
 
 
-@pytest.mark.parametrize("package", ["protocol", "trackdb"])
+@pytest.mark.parametrize("package", PACKAGES)
 def test_package_all_reexports_public_names_of_private_modules(package: str) -> None:
-    top = importlib.import_module(package)
+    """A private module's names are its package's: ``trackdb._exceptions`` → ``trackdb``,
+    ``onboard.vc._exceptions`` → ``onboard.vc``."""
     for name in _modules(package):
-        if name.rsplit(".", 1)[-1].startswith("_"):
+        parent, _, stem = name.rpartition(".")
+        if stem.startswith("_"):
             module = importlib.import_module(name)
-            assert set(module.__all__) <= set(top.__all__), name
+            exported = set(importlib.import_module(parent).__all__)
+            assert set(module.__all__) <= exported, name
+
+
+@pytest.mark.parametrize("package", ["onboard", "deploy"])
+def test_one_exception_root_per_package(package: str) -> None:
+    """Every exception class a package defines derives from the package's root (drawn in its
+    ``_exceptions`` module), besides the built-in it extends."""
+    root = importlib.import_module(f"{package}._exceptions")
+    base = getattr(root, f"{package.capitalize()}Error")
+    strays = []
+    for name in _modules(package):
+        module = importlib.import_module(name)
+        for value in vars(module).values():
+            defined_here = isinstance(value, type) and value.__module__ == name
+            if defined_here and issubclass(value, Exception) and not issubclass(value, base):
+                strays.append(f"{name}.{value.__name__}")
+    assert strays == []
 
 
 # One home for the physical constants (docs/decisions.md, "One home for the vehicle's data and

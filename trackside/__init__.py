@@ -5,3 +5,5 @@ Layers: ``api/routes`` (HTTP only) → ``services`` (domain rules, domain errors
 place, the app's exception handlers (``api/exception_handlers``). ``bridge`` is the Zenoh side:
 liveliness and status of every vehicle. Never imports ``onboard``.
 """
+
+__all__ = []

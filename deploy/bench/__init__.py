@@ -32,3 +32,5 @@ Harnesses of one part:
 
 Nothing is imported here: each module loads what it needs when it is used.
 """
+
+__all__ = []

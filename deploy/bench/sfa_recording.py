@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from deploy._exceptions import DeployError
 from onboard.plant.sensors import TruthSample
 from onboard.sfa.listener import ListenerConfig, ListenerCore, SfaStatus
 from protocol.units import MPS_PER_KMH
@@ -33,7 +34,7 @@ __all__ = ["Recording", "RecordingError", "ReplayResult", "replay"]
 FloatArray = npt.NDArray[np.float64]
 
 
-class RecordingError(ValueError):
+class RecordingError(DeployError, ValueError):
     """An offline recording is unreadable or inconsistent."""
 
 

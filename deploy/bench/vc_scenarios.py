@@ -14,6 +14,7 @@ import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 
+from deploy._exceptions import DeployError
 from deploy.bench.vc_responder import OperatorAction, ResponderFault
 from onboard.vc.config import VcConfig
 from onboard.vc.hardware import FULL_EB_DELAY_S, PipeFault, RelayFault, TachometerFault
@@ -32,7 +33,7 @@ __all__ = [
 ]
 
 
-class ScenarioError(ValueError):
+class ScenarioError(DeployError, ValueError):
     """A scenario of the catalogue that cannot be run: a fault window that ends before it
     starts, an action after the run."""
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
+from deploy._exceptions import DeployError
 from deploy.scenario.schema import ScenarioSpec
 
 __all__ = [
@@ -32,7 +33,7 @@ _KEY = re.compile(r"^\s*([A-Za-z0-9_-]+)\s*=")
 _TOML_POSITION = re.compile(r"\(at line (\d+), column \d+\)")
 
 
-class ScenarioFileError(ValueError):
+class ScenarioFileError(DeployError, ValueError):
     """A scenario file that cannot be used: where, and why."""
 
     def __init__(self, path: str, line: int | None, reason: str) -> None:

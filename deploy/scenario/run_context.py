@@ -16,6 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from deploy._exceptions import DeployError
 from deploy.scenario.schema import ScenarioSpec
 from deploy.scenario.telemetry import TelemetryRecorder
 from onboard.node import OnboardNode
@@ -37,7 +38,7 @@ LINK_WAIT_S = 15.0
 """How long, in wall time, the sessions may take to notice a cut or a restored link [s]."""
 
 
-class ScenarioRunError(RuntimeError):
+class ScenarioRunError(DeployError, RuntimeError):
     """The run could not be carried out (not: an expectation failed)."""
 
 

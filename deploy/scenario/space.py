@@ -17,6 +17,7 @@ from typing import Annotated, Literal, get_args
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from deploy._exceptions import DeployError
 from deploy.scenario.schema import InvariantSettings, VehicleSpec
 from trackdb import load_seed_line
 
@@ -205,7 +206,7 @@ class GeneratorSpace(_Model):
         return self
 
 
-class SpaceFileError(ValueError):
+class SpaceFileError(DeployError, ValueError):
     """A space file that cannot be used: which, where in it, and why."""
 
 

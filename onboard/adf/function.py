@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 
+from onboard._exceptions import AdfError
 from onboard.adf.autonomous import AutonomousDriving
 from onboard.adf.journey import JourneyPlan, JourneyStop
 from onboard.adf.nmpc import NmpcConfig, NmpcController
@@ -84,7 +85,7 @@ BEHIND_RETRY_S = 5.0
 """After a catch-up replan that could not be made, the next try comes this much later [s]."""
 
 
-class NoJourneyError(RuntimeError):
+class NoJourneyError(AdfError, RuntimeError):
     """Autonomous driving asked for with no journey planned."""
 
 

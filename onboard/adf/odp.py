@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol
 
+from onboard._exceptions import AdfError
 from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap
 
@@ -58,7 +59,7 @@ def held_under(ceiling_mps: float, margin_mps: float) -> float:
     return ceiling_mps * (1.0 - SPEED_UNDERREAD_SHARE) - margin_mps
 
 
-class InfeasibleLegError(ValueError):
+class InfeasibleLegError(AdfError, ValueError):
     """A leg that no LSPB within the limits can run in its scheduled time."""
 
 

@@ -2,7 +2,7 @@
 
 ::
 
-    AtoObError (Exception)                  base of the package's errors
+    AtoObError (OnboardError)                  base of the package's errors
     ├── AtoObInputError (ValueError)        a bad call: a non-finite or negative value, time
     │                                       going back, an ETCS-OB output received in the future
     └── RequestRefusedError                 an operator request the state forbids now: engage
@@ -15,10 +15,12 @@ to the console. :meth:`onboard.ato_ob.AtoObController.step` never raises on vali
 
 from __future__ import annotations
 
+from onboard._exceptions import OnboardError
+
 __all__ = ["AtoObError", "AtoObInputError", "RequestRefusedError"]
 
 
-class AtoObError(Exception):
+class AtoObError(OnboardError):
     """Base of the errors of :mod:`onboard.ato_ob`."""
 
 

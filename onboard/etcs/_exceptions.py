@@ -2,7 +2,7 @@
 
 ::
 
-    EtcsError (Exception)                      base of the package's errors
+    EtcsError (OnboardError)                      base of the package's errors
     ├── EtcsInputError (ValueError)            a bad call: a non-finite or negative value, time
     │                                          going back, a limit the target does not have
     ├── TrainDataError (ValueError)            fixed values, national values, train data or
@@ -20,6 +20,8 @@ input, so a cycle of :meth:`onboard.etcs.EtcsOnboard.step` always yields its com
 
 from __future__ import annotations
 
+from onboard._exceptions import OnboardError
+
 __all__ = [
     "BrakingCapabilityError",
     "EtcsError",
@@ -30,7 +32,7 @@ __all__ = [
 ]
 
 
-class EtcsError(Exception):
+class EtcsError(OnboardError):
     """Base of the errors of :mod:`onboard.etcs`."""
 
 

@@ -9,10 +9,12 @@ Malformed datagrams never raise out of the listener: they are dropped and counte
 
 from __future__ import annotations
 
+from onboard._exceptions import OnboardError
+
 __all__ = ["AddressError", "NotInitialisedError", "SfaError"]
 
 
-class SfaError(Exception):
+class SfaError(OnboardError):
     """Base of the sensor-fusion errors."""
 
 

@@ -2,7 +2,7 @@
 
 ::
 
-    VcError (Exception)                  base of the package's errors
+    VcError (OnboardError)                  base of the package's errors
     ├── VcInputError (ValueError)        a bad call: a non-finite or negative duration, time
     │                                    going back, a message with the wrong number of
     │                                    sections or a sequence number out of range
@@ -15,10 +15,12 @@ Decay), not an exception, so each cycle of Task A, B and C always yields its out
 
 from __future__ import annotations
 
+from onboard._exceptions import OnboardError
+
 __all__ = ["VcError", "VcInputError"]
 
 
-class VcError(Exception):
+class VcError(OnboardError):
     """Base of the errors of :mod:`onboard.vc`."""
 
 

@@ -1,1 +1,3 @@
 """One module per resource under ``/api/v1/``."""
+
+__all__ = []

@@ -10,6 +10,8 @@ from trackside.api.deps import AdminUser, SessionDep
 from trackside.api.schemas import AuditPublic
 from trackside.services import audit
 
+__all__ = ["router"]
+
 router = APIRouter(prefix="/audit", tags=["audit"])
 
 

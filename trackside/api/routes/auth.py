@@ -14,6 +14,8 @@ from trackside.errors import AuthenticationError
 from trackside.ratelimit import LoginLimiter
 from trackside.services import users
 
+__all__ = ["router"]
+
 router = APIRouter(prefix="/auth", tags=["auth"])
 
 

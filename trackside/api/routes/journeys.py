@@ -11,6 +11,8 @@ from trackside.api.deps import DriverUser, ObserverUser, SessionDep
 from trackside.api.schemas import JourneyCheckPublic, JourneyPublic
 from trackside.services import journeys as service
 
+__all__ = ["router"]
+
 router = APIRouter(prefix="/journeys", tags=["journeys"])
 
 

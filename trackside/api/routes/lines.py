@@ -17,6 +17,8 @@ from trackside.api.schemas import (
 )
 from trackside.services import lines
 
+__all__ = ["router"]
+
 router = APIRouter(prefix="/lines", tags=["lines"])
 
 VersionQuery = Annotated[

@@ -19,6 +19,8 @@ from trackside.models import User
 from trackside.rbc import MovementAuthorityIssue, RbcEmulator
 from trackside.rbc_rules import speed_restriction
 
+__all__ = ["router"]
+
 router = APIRouter(prefix="/rbc", tags=["rbc"])
 
 _audit = logging.getLogger("trackside.audit")

@@ -8,6 +8,8 @@ from trackside.api.deps import AdminUser, CurrentUser, SessionDep
 from trackside.api.schemas import UserCreate, UserPublic
 from trackside.services import users
 
+__all__ = ["router"]
+
 router = APIRouter(prefix="/users", tags=["users"])
 
 

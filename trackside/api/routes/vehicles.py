@@ -33,6 +33,8 @@ from trackside.api.schemas import (
 )
 from trackside.services import audit, history, holds
 
+__all__ = ["router"]
+
 router = APIRouter(prefix="/vehicles", tags=["vehicles"])
 
 VehiclePath = Annotated[

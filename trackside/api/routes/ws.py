@@ -21,6 +21,8 @@ from trackside.live import LiveHub
 from trackside.services import holds, users
 from trackside.simulated_operator import SimulatedOperatorThread
 
+__all__ = ["router"]
+
 router = APIRouter(prefix="/ws", tags=["live"])
 
 POLICY_VIOLATION = 1008
