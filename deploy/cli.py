@@ -15,6 +15,8 @@ from deploy.cli_sfa import sfa_app
 from protocol import DEFAULT_ROUTER_ENDPOINT, ZenohSettings
 from protocol.router import run_router
 
+__all__ = ["app"]
+
 if TYPE_CHECKING:
     from sqlalchemy.orm import Session
 
@@ -194,8 +196,21 @@ def demo(
 
 
 @app.command()
-def scenarios() -> None:
+def scenarios(
+    kpis_schema: Annotated[
+        bool,
+        typer.Option(
+            "--kpis-schema",
+            help="Print the JSON Schema of kpis.json (as in deploy/scenario/kpis.schema.json).",
+        ),
+    ] = False,
+) -> None:
     """List the scenario library's names, one a line."""
+    if kpis_schema:
+        from deploy.scenario.kpi_model import kpis_json_schema
+
+        typer.echo(kpis_json_schema(), nl=False)
+        return
     from deploy.scenario import scenario_names
 
     for name in scenario_names():

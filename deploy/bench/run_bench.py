@@ -13,7 +13,6 @@ bogie model.
 
 from __future__ import annotations
 
-import json
 import statistics
 import subprocess
 import sys
@@ -21,10 +20,12 @@ import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
+from pydantic import ValidationError
 from rich.console import Console
 from rich.table import Table
+
+from deploy.scenario.kpi_model import Kpis
 
 __all__ = [
     "DEFAULT_SCENARIOS",
@@ -51,16 +52,14 @@ class RunSample:
 
     scenario: str
     exit_code: int
-    kpis: dict[str, Any] | None
+    kpis: Kpis | None
     error: str = ""
-    """The last line of the run's standard error when it wrote no ``kpis.json``."""
+    """The last line of the run's standard error when it wrote no ``kpis.json`` (or why the
+    one it wrote was not read)."""
 
     @property
     def real_time_factor(self) -> float | None:
-        if self.kpis is None:
-            return None
-        value = self.kpis.get("real_time_factor")
-        return float(value) if isinstance(value, int | float) else None
+        return None if self.kpis is None else self.kpis.real_time_factor
 
 
 @dataclass(frozen=True)
@@ -101,33 +100,37 @@ def run_once(scenario: str, *, seed: int | None = None, timeout_s: float = 3600.
         if not path.is_file():
             lines = finished.stderr.strip().splitlines()
             return RunSample(scenario, finished.returncode, None, lines[-1] if lines else "")
-        kpis = json.loads(path.read_text())
+        try:
+            kpis = Kpis.model_validate_json(path.read_text(encoding="utf-8"))
+        except ValidationError as exc:
+            reason = f"kpis.json does not match the model: {exc.errors()[0]['msg']}"
+            return RunSample(scenario, finished.returncode, None, reason)
     return RunSample(scenario, finished.returncode, kpis)
 
 
 def summarise(scenario: str, samples: Sequence[RunSample]) -> ScenarioSummary:
     """The figures of one scenario's runs (those without ``kpis.json`` count as not run)."""
-    ran = [(s, s.kpis) for s in samples if s.kpis is not None and s.real_time_factor is not None]
-    factors = [float(kpis["real_time_factor"]) for _, kpis in ran]
-    walls = [float(kpis["wall_time_s"]) for _, kpis in ran if "wall_time_s" in kpis]
+    ran = [(s, s.kpis) for s in samples if s.kpis is not None]
+    factors = [kpis.real_time_factor for _, kpis in ran]
+    walls = [kpis.wall_time_s for _, kpis in ran]
     per_task: dict[str, list[float]] = {}
     shares: dict[str, list[float]] = {}
     for _, kpis in ran:
-        breakdown = kpis.get("wall_time_breakdown") or {}
-        for name, task in (breakdown.get("tasks") or {}).items():
-            per_task.setdefault(name, []).append(float(task["mean_us"]))
-            shares.setdefault(name, []).append(float(task["share"]))
+        breakdown = kpis.wall_time_breakdown
+        for name, task in ({} if breakdown is None else breakdown.tasks).items():
+            per_task.setdefault(name, []).append(task.mean_us)
+            shares.setdefault(name, []).append(task.share or 0.0)
     order = sorted(per_task, key=lambda name: -statistics.median(shares[name]))
     return ScenarioSummary(
         scenario=scenario,
         runs=len(samples),
-        passed=sum(1 for s, kpis in ran if s.exit_code == 0 and kpis.get("passed") is True),
+        passed=sum(1 for s, kpis in ran if s.exit_code == 0 and kpis.passed),
         failed_to_run=len(samples) - len(ran),
         factor_median=statistics.median(factors) if factors else None,
         factor_worst=min(factors) if factors else None,
         factor_best=max(factors) if factors else None,
         wall_median_s=statistics.median(walls) if walls else None,
-        sim_time_s=float(ran[0][1]["sim_time_s"]) if ran else None,
+        sim_time_s=ran[0][1].sim_time_s if ran else None,
         task_mean_us={name: statistics.median(per_task[name]) for name in order},
         target=TARGET_REAL_TIME_FACTORS.get(scenario),
     )

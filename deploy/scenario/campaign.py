@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from deploy.scenario.kpi_model import Kpis, ServedStop
 from deploy.scenario.loader import load_scenario
 from deploy.scenario.runner import RunOptions, run_scenario
 from deploy.scenario.schema import ScenarioSpec
@@ -64,16 +65,20 @@ FAULT_SCENARIOS = (
     "balise-missed",
 )
 """The whole-stack fault scenarios: the campaign's default matrix."""
-STOP_KPIS = ("stop_error_m", "arrival_error_s")
+STOP_KPIS: dict[str, Callable[[ServedStop], float]] = {
+    "stop_error_m": lambda stop: stop.stop_error_m,
+    "arrival_error_s": lambda stop: stop.arrival_error_s,
+}
 """Per stop: their absolute values over every stop of a scenario's runs are distributed."""
-HEADLINE_KPIS = (
-    "max_overspeed_kmh",
-    "ad_speed_rms_kmh",
-    "position_error_m.rms",
-    "min_eoa_margin_m",
-    "traction_energy_kwh",
-    "real_time_factor",
-)
+HEADLINE_KPIS: dict[str, Callable[[Kpis], float | None]] = {
+    "max_overspeed_kmh": lambda kpis: kpis.max_overspeed_kmh,
+    "ad_speed_rms_kmh": lambda kpis: kpis.ad_speed_rms_kmh,
+    "position_error_m.rms": lambda kpis: kpis.position_error_m.rms,
+    "min_eoa_margin_m": lambda kpis: kpis.min_eoa_margin_m,
+    "traction_energy_kwh": lambda kpis: kpis.traction_energy_kwh,
+    "real_time_factor": lambda kpis: kpis.real_time_factor,
+}
+"""Per run, by their path in ``kpis.json`` (the summary's keys)."""
 
 
 @dataclass(frozen=True)
@@ -111,7 +116,7 @@ class Cell:
 @dataclass(frozen=True)
 class CellResult:
     cell: Cell
-    kpis: dict[str, Any] | None
+    kpis: Kpis | None
     error: str | None = None
 
     @property
@@ -124,13 +129,13 @@ class CellResult:
         if self.kpis is None:
             return []
         kpis, found = self.kpis, []
-        over = kpis.get("max_overspeed_kmh") or 0.0
+        over = kpis.max_overspeed_kmh
         if over > 0.0 and over * MPS_PER_KMH > _ebi_margin_mps():
             found.append(f"overspeed {over:.2f} km/h beyond the EBI")
-        eoa = kpis.get("min_eoa_margin_m")
+        eoa = kpis.min_eoa_margin_m
         if eoa is not None and eoa < 0.0:
             found.append(f"EoA passed by {-eoa:.2f} m")
-        obstacle = kpis.get("min_obstacle_margin_m")
+        obstacle = kpis.min_obstacle_margin_m
         if obstacle is not None and obstacle < 0.0:
             found.append(f"obstacle reached ({-obstacle:.2f} m beyond)")
         return found
@@ -247,20 +252,12 @@ def run_campaign(
     return [results[index] for index in range(len(cells))]
 
 
-def _kpi(kpis: dict[str, Any], path: str) -> float | None:
-    value: Any = kpis
-    for part in path.split("."):
-        if not isinstance(value, dict) or part not in value:
-            return None
-        value = value[part]
-    return float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
-
-
-def _stop_values(kpis: dict[str, Any] | None, key: str) -> list[float]:
+def _stop_values(kpis: Kpis | None, key: str) -> list[float]:
     """``key`` of every stop the run made (none for a crash)."""
     if kpis is None:
         return []
-    return [float(stop[key]) for stop in kpis.get("stops", []) if stop.get(key) is not None]
+    value = STOP_KPIS[key]
+    return [value(stop) for stop in kpis.stops]
 
 
 def distribution(values: list[float]) -> dict[str, float] | None:
@@ -281,15 +278,15 @@ def summarise(results: Sequence[CellResult]) -> dict[str, Any]:
         ran = [r for r in group if r.kpis is not None]
         scenarios[name] = {
             "runs": len(group),
-            "passed": sum(1 for r in ran if r.kpis is not None and r.kpis["passed"]),
-            "failed": sum(1 for r in ran if r.kpis is not None and not r.kpis["passed"]),
+            "passed": sum(1 for r in ran if r.kpis is not None and r.kpis.passed),
+            "failed": sum(1 for r in ran if r.kpis is not None and not r.kpis.passed),
             "crashed": len(group) - len(ran),
             "unsafe": sum(1 for r in ran if r.unsafe),
             "kpis": {
                 path: distribution(
-                    [v for r in ran if r.kpis is not None and (v := _kpi(r.kpis, path)) is not None]
+                    [v for r in ran if r.kpis is not None and (v := value(r.kpis)) is not None]
                 )
-                for path in HEADLINE_KPIS
+                for path, value in HEADLINE_KPIS.items()
             }
             | {
                 f"stops.{key}.abs": distribution(
@@ -310,12 +307,12 @@ def summarise(results: Sequence[CellResult]) -> dict[str, Any]:
                 "scenario": r.cell.scenario,
                 "seed": r.cell.seed,
                 "setting": dict(r.cell.setting),
-                "passed": None if r.kpis is None else r.kpis["passed"],
+                "passed": None if r.kpis is None else r.kpis.passed,
                 "unsafe": r.unsafe,
                 "error": r.error,
                 "failed_expectations": []
                 if r.kpis is None
-                else [e["name"] for e in r.kpis["expectations"] if not e["ok"]],
+                else [e.name for e in r.kpis.expectations if not e.ok],
                 "stops": {key: _stop_values(r.kpis, key) for key in STOP_KPIS},
             }
             for r in results

@@ -5,15 +5,20 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from pydantic import BaseModel
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
+from deploy.scenario.kpi_model import Kpis, WallTimeBreakdown
 from deploy.scenario.loader import ScenarioFileError, load_scenario
 from deploy.scenario.runner import Progress as RunProgress
 from deploy.scenario.runner import RunOptions, RunOutcome, ScenarioRunError, run_scenario
+
+if TYPE_CHECKING:
+    from deploy.scenario.campaign import CellResult
 
 __all__ = ["campaign_from_cli", "run_from_cli", "summary_table"]
 
@@ -60,72 +65,77 @@ def run_from_cli(
 def _format(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:.3f}"
-    if isinstance(value, dict):
-        return ", ".join(f"{k} {_format(v)}" for k, v in value.items())
+    if isinstance(value, BaseModel):
+        return ", ".join(f"{k} {_format(v)}" for k, v in value.model_dump().items())
     return str(value)
 
 
-def _breakdown_text(breakdown: dict[str, Any], shown: int = 5) -> str:
+def _breakdown_text(breakdown: WallTimeBreakdown, shown: int = 5) -> str:
     """The stepping's wall time and its largest tasks, e.g. ``lockstep 70.1 s: sfa 26 %, …``."""
     tasks = [
-        f"{name} {100 * item['share']:.0f} %"
-        for name, item in list(breakdown["tasks"].items())[:shown]
-        if item["share"] is not None
+        f"{name} {100 * item.share:.0f} %"
+        for name, item in list(breakdown.tasks.items())[:shown]
+        if item.share is not None
     ]
-    text = f"lockstep {breakdown['lockstep_s']:.1f} s: " + ", ".join(tasks)
-    if "outside_lockstep_s" in breakdown:
-        text += f"; outside it {breakdown['outside_lockstep_s']:.1f} s"
+    text = f"lockstep {breakdown.lockstep_s:.1f} s: " + ", ".join(tasks)
+    if breakdown.outside_lockstep_s is not None:
+        text += f"; outside it {breakdown.outside_lockstep_s:.1f} s"
     return text
+
+
+def _headline(kpis: Kpis) -> list[tuple[str, object]]:
+    """The KPIs the table shows first, by name (``vc_outcome`` for ``[vc]`` runs only)."""
+    rows: list[tuple[str, object]] = [
+        ("seed", kpis.seed),
+        ("sim_time_s", kpis.sim_time_s),
+        ("wall_time_s", kpis.wall_time_s),
+        ("real_time_factor", kpis.real_time_factor),
+        ("max_overspeed_kmh", kpis.max_overspeed_kmh),
+        ("etcs_sb_count", kpis.etcs_sb_count),
+        ("etcs_eb_count", kpis.etcs_eb_count),
+        ("vc_eb_count", kpis.vc_eb_count),
+        ("system_decay", kpis.system_decay),
+        ("traction_energy_kwh", kpis.traction_energy_kwh),
+        ("ad_speed_rms_kmh", kpis.ad_speed_rms_kmh),
+        ("position_error_m", kpis.position_error_m),
+        ("nmpc_ms", kpis.nmpc_ms),
+    ]
+    if kpis.vc_outcome is not None:
+        rows.append(("vc_outcome", kpis.vc_outcome))
+    return rows
 
 
 def summary_table(outcome: RunOutcome) -> Table:
     """The run's headline KPIs and each expectation."""
     kpis = outcome.kpis
-    table = Table(title=f"{kpis['scenario']}: {'PASSED' if outcome.passed else 'FAILED'}")
+    table = Table(title=f"{kpis.scenario}: {'PASSED' if outcome.passed else 'FAILED'}")
     table.add_column("KPI / expectation")
     table.add_column("value")
-    for key in (
-        "seed",
-        "sim_time_s",
-        "wall_time_s",
-        "real_time_factor",
-        "max_overspeed_kmh",
-        "etcs_sb_count",
-        "etcs_eb_count",
-        "vc_eb_count",
-        "system_decay",
-        "traction_energy_kwh",
-        "ad_speed_rms_kmh",
-        "position_error_m",
-        "nmpc_ms",
-        "vc_outcome",
-    ):
-        if key in kpis:
-            table.add_row(key, _format(kpis[key]))
-    breakdown = kpis.get("wall_time_breakdown")
-    if breakdown is not None:
-        table.add_row("wall time by task", _breakdown_text(breakdown))
-    for stop in kpis["stops"]:
+    for name, value in _headline(kpis):
+        table.add_row(name, _format(value))
+    if kpis.wall_time_breakdown is not None:
+        table.add_row("wall time by task", _breakdown_text(kpis.wall_time_breakdown))
+    for stop in kpis.stops:
         table.add_row(
-            f"stop {stop['name']}",
-            f"arrival {stop['arrival_error_s']:+.2f} s, position {stop['stop_error_m']:+.3f} m",
+            f"stop {stop.name}",
+            f"arrival {stop.arrival_error_s:+.2f} s, position {stop.stop_error_m:+.3f} m",
         )
-    for item in kpis["vc_interventions"]:
+    for item in kpis.vc_interventions:
         timing = (
-            f"hazard→command {item['hazard_to_eb_command_ms']} ms, "
-            f"hazard→full EB {item['total_to_full_eb_ms']} ms"
+            f"hazard→command {item.hazard_to_eb_command_ms} ms, "
+            f"hazard→full EB {item.total_to_full_eb_ms} ms"
         )
-        table.add_row(f"VC EB ({item['cause']})", timing)
-    for item in kpis["expectations"]:
-        mark = "[green]ok[/green]" if item["ok"] else "[red]FAIL[/red]"
-        table.add_row(f"{mark} {item['name']}", item["detail"])
+        table.add_row(f"VC EB ({item.cause})", timing)
+    for result in kpis.expectations:
+        mark = "[green]ok[/green]" if result.ok else "[red]FAIL[/red]"
+        table.add_row(f"{mark} {result.name}", result.detail)
     return table
 
 
 @contextlib.contextmanager
 def _campaign_progress(
     console: Console, total: int
-) -> Iterator[tuple[Progress, Callable[[Any], None]]]:
+) -> Iterator[tuple[Progress, Callable[[CellResult], None]]]:
     """A campaign's progress bar, and the callback that prints one line a run as it ends, so
     that a long campaign can be followed in a log."""
     with Progress(
@@ -138,7 +148,7 @@ def _campaign_progress(
         task = bar.add_task("campaign", total=total)
         done = [0]
 
-        def finished(result: Any) -> None:
+        def finished(result: CellResult) -> None:
             done[0] += 1
             bar.console.print(
                 f"[{done[0]}/{total}] {_result_line(result)}",
@@ -231,26 +241,26 @@ def campaign_from_cli(
     return 0 if summary["crashed"] == 0 and summary["unsafe"] == 0 else 1
 
 
-def _result_line(result: Any) -> str:
+def _result_line(result: CellResult) -> str:
     """``obstacle seed=3: passed (RTF 14.2)``, or what went wrong."""
-    label = result.cell.label
-    if result.crashed:
-        return f"{label}: CRASHED ({result.error.strip().splitlines()[-1]})"
-    kpis = result.kpis
+    label, kpis = result.cell.label, result.kpis
+    if kpis is None:
+        last = (result.error or "").strip().splitlines() or ["no error text"]
+        return f"{label}: CRASHED ({last[-1]})"
     if result.unsafe:
         return f"{label}: UNSAFE ({'; '.join(result.unsafe)})"
-    failed = [item["name"] for item in kpis["expectations"] if not item["ok"]]
+    failed = [item.name for item in kpis.expectations if not item.ok]
     verdict = "passed" if not failed else "failed: " + "; ".join(failed)
-    return f"{label}: {verdict} (RTF {kpis['real_time_factor']:.1f})"
+    return f"{label}: {verdict} (RTF {kpis.real_time_factor:.1f})"
 
 
-def _min_margin(results: list[Any], name: str) -> str:
+def _min_margin(results: list[CellResult], name: str) -> str:
     margins = [
-        r.kpis["min_eoa_margin_m"]
+        margin
         for r in results
         if r.cell.scenario == name
         and r.kpis is not None
-        and r.kpis.get("min_eoa_margin_m") is not None
+        and (margin := r.kpis.min_eoa_margin_m) is not None
     ]
     return f"{min(margins):.2f}" if margins else "—"
 

@@ -20,6 +20,7 @@ from typing import Any
 from deploy.scenario.campaign import Cell, CellResult, distribution, run_campaign, summarise
 from deploy.scenario.generate import Draw, draw, write_scenario
 from deploy.scenario.invariants import INVARIANTS, Violation, judge
+from deploy.scenario.kpi_model import Kpis, ServedStop
 from deploy.scenario.loader import load_scenario
 from deploy.scenario.schema import InvariantName, ScenarioSpec
 from deploy.scenario.shrink import ShrinkResult, shrink
@@ -28,14 +29,19 @@ from deploy.scenario.toml_out import scenario_toml
 
 __all__ = ["GeneratedCampaign", "kpi_distributions", "run_generated", "summarise_generated"]
 
-DISTRIBUTIONS = (
-    "stop_error_m.abs",
-    "arrival_error_s.abs",
-    "nmpc_ms.p99",
-    "nmpc_ms.max",
-    "traction_energy_kwh",
-)
-"""The KPI distributions of the summary: per stop for the first two, per run for the rest."""
+STOP_DISTRIBUTIONS: dict[str, Callable[[ServedStop], float]] = {
+    "stop_error_m.abs": lambda stop: abs(stop.stop_error_m),
+    "arrival_error_s.abs": lambda stop: abs(stop.arrival_error_s),
+}
+"""The KPI distributions of the summary over every stop of every run."""
+RUN_DISTRIBUTIONS: dict[str, Callable[[Kpis], float | None]] = {
+    "nmpc_ms.p99": lambda kpis: None if kpis.nmpc_ms is None else kpis.nmpc_ms.p99,
+    "nmpc_ms.max": lambda kpis: None if kpis.nmpc_ms is None else kpis.nmpc_ms.max,
+    "traction_energy_kwh": lambda kpis: kpis.traction_energy_kwh,
+}
+"""The KPI distributions of the summary over every run."""
+DISTRIBUTIONS = (*STOP_DISTRIBUTIONS, *RUN_DISTRIBUTIONS)
+"""The summary's KPI distributions, by their names in it."""
 
 
 @dataclass(frozen=True)
@@ -104,24 +110,12 @@ def run_generated(
 
 
 def _values(results: Sequence[CellResult], key: str) -> list[float]:
-    if key.endswith(".abs"):
-        name = key.removesuffix(".abs")
-        return [
-            abs(float(stop[name]))
-            for r in results
-            if r.kpis is not None
-            for stop in r.kpis.get("stops", [])
-            if stop.get(name) is not None
-        ]
-    head, _, member = key.partition(".")
-    found = []
-    for r in results:
-        value: Any = None if r.kpis is None else r.kpis.get(head)
-        if member and isinstance(value, dict):
-            value = value.get(member)
-        if isinstance(value, int | float) and not isinstance(value, bool):
-            found.append(float(value))
-    return found
+    ran = [r.kpis for r in results if r.kpis is not None]
+    if key in STOP_DISTRIBUTIONS:
+        of_stop = STOP_DISTRIBUTIONS[key]
+        return [of_stop(stop) for kpis in ran for stop in kpis.stops]
+    of_run = RUN_DISTRIBUTIONS[key]
+    return [value for kpis in ran if (value := of_run(kpis)) is not None]
 
 
 def kpi_distributions(results: Sequence[CellResult]) -> dict[str, dict[str, float] | None]:

@@ -1,4 +1,4 @@
-"""The invariants a whole-stack run must keep, judged on its ``kpis.json`` (the truth).
+"""The invariants a whole-stack run must keep, judged on its KPIs (``kpis.json``: the truth).
 
 Generated scenarios (``deploy.scenario.generate``) are judged by these rather than by
 hand-written expectations: whatever the draw, the train never runs above the MRSP or the
@@ -30,10 +30,11 @@ crash              the run raised
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, get_args
+from typing import get_args
 
+from deploy.scenario.kpi_model import ExpectationResult, Kpis
 from deploy.scenario.schema import (
     AtoFailure,
     InvariantName,
@@ -67,9 +68,6 @@ class Violation:
     detail: str
 
 
-Kpis = Mapping[str, Any]
-
-
 def faults_asking_for_vc_eb(spec: ScenarioSpec, settings: InvariantSettings) -> list[str]:
     """The faults of ``spec`` after which a VC emergency brake is the right answer.
 
@@ -91,9 +89,9 @@ def faults_asking_for_vc_eb(spec: ScenarioSpec, settings: InvariantSettings) -> 
 
 
 def _journey_refused_as_infeasible(kpis: Kpis) -> str | None:
-    for action in kpis.get("actions") or []:
-        if action.get("action") == "send_journey" and not action.get("accepted", True):
-            detail = str(action.get("detail") or "")
+    for action in kpis.actions or []:
+        if action.action == "send_journey" and not action.accepted:
+            detail = action.detail or ""
             if any(mark in detail for mark in INFEASIBLE_MARKS):
                 return detail
     return None
@@ -108,15 +106,15 @@ def excused_stops(spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) -
     served after a VC emergency brake that a fault asks for (the train stands in System Decay).
     """
     excused: dict[str, str] = {}
-    for report in kpis.get("journey_reports") or []:
-        excused[str(report["stop"])] = str(report["reason"])
+    for report in kpis.journey_reports or []:
+        excused[report.stop] = report.reason
     if spec.journey is not None:
         refusal = _journey_refused_as_infeasible(kpis)
         if refusal is not None:
             for point in spec.journey.timing_points:
                 excused.setdefault(point.id, f"journey refused as infeasible: {refusal[:120]}")
-        if (kpis.get("vc_eb_count") or 0) > 0 and faults_asking_for_vc_eb(spec, settings):
-            served = {stop["name"] for stop in kpis.get("stops") or []}
+        if kpis.vc_eb_count > 0 and faults_asking_for_vc_eb(spec, settings):
+            served = {stop.name for stop in kpis.stops}
             for point in spec.journey.timing_points:
                 if point.id not in served:
                     excused.setdefault(point.id, "after a VC EB a fault asks for")
@@ -124,50 +122,50 @@ def excused_stops(spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) -
 
 
 def _overspeed_mrsp(_spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) -> list[str]:
-    over = kpis.get("max_overspeed_kmh") or 0.0
+    over = kpis.max_overspeed_kmh
     tolerance = settings.overspeed_tolerance_kmh
     return [f"{over:.3f} km/h above the MRSP"] if over > tolerance else []
 
 
 def _overspeed_cap(_spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) -> list[str]:
-    over = kpis.get("max_speed_over_cap_kmh") or 0.0
+    over = kpis.max_speed_over_cap_kmh or 0.0
     tolerance = settings.overspeed_tolerance_kmh
     return [f"{over:.3f} km/h above the journey's cap in AD"] if over > tolerance else []
 
 
 def _eoa_passed(_spec: ScenarioSpec, kpis: Kpis, _settings: InvariantSettings) -> list[str]:
-    margin = kpis.get("min_eoa_margin_m")
+    margin = kpis.min_eoa_margin_m
     return [f"EoA passed by {-margin:.2f} m"] if margin is not None and margin < 0.0 else []
 
 
 def _eoa_stop_far(_spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) -> list[str]:
     return [
-        f"stood {stop['distance_to_eoa_m']:.2f} m before an EoA at {stop['time_s']:.1f} s "
+        f"stood {stop.distance_to_eoa_m:.2f} m before an EoA at {stop.time_s:.1f} s "
         f"(at most {settings.max_eoa_stop_m:g} m)"
-        for stop in kpis.get("eoa_stops") or []
-        if stop["distance_to_eoa_m"] > settings.max_eoa_stop_m
+        for stop in kpis.eoa_stops
+        if stop.distance_to_eoa_m > settings.max_eoa_stop_m
     ]
 
 
 def _etcs_intervention(_spec: ScenarioSpec, kpis: Kpis, _settings: InvariantSettings) -> list[str]:
-    service, emergency = kpis.get("etcs_sb_count") or 0, kpis.get("etcs_eb_count") or 0
+    service, emergency = kpis.etcs_sb_count, kpis.etcs_eb_count
     if service or emergency:
         return [f"ETCS braked: {service} service, {emergency} emergency"]
     return []
 
 
 def _vc_eb(spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) -> list[str]:
-    count = kpis.get("vc_eb_count") or 0
+    count = kpis.vc_eb_count
     if count == 0 or faults_asking_for_vc_eb(spec, settings):
         return []
-    causes = ", ".join(str(item.get("cause")) for item in kpis.get("vc_interventions") or [])
+    causes = ", ".join(item.cause for item in kpis.vc_interventions)
     return [f"{count} VC EB ({causes or 'cause unknown'}) and no fault asks for one"]
 
 
 def _stop_missed(spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) -> list[str]:
     if spec.journey is None:
         return []
-    made = {stop["name"]: stop for stop in kpis.get("stops") or []}
+    made = {stop.name: stop for stop in kpis.stops}
     excused = excused_stops(spec, kpis, settings)
     found = []
     for point in spec.journey.timing_points:
@@ -176,9 +174,9 @@ def _stop_missed(spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) ->
         stop = made.get(point.id)
         if stop is None:
             found.append(f"stop {point.id} not served")
-        elif abs(stop["stop_error_m"]) > settings.max_stop_error_m:
+        elif abs(stop.stop_error_m) > settings.max_stop_error_m:
             found.append(
-                f"stop {point.id} {stop['stop_error_m']:+.3f} m from its point "
+                f"stop {point.id} {stop.stop_error_m:+.3f} m from its point "
                 f"(tolerance {settings.max_stop_error_m} m)"
             )
     return found
@@ -186,15 +184,13 @@ def _stop_missed(spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) ->
 
 def _nmpc_unbounded(_spec: ScenarioSpec, kpis: Kpis, settings: InvariantSettings) -> list[str]:
     found = []
-    failures = kpis.get("nmpc_failures") or 0
-    fallback = kpis.get("nmpc_fallback_s") or 0.0
+    failures, fallback = kpis.nmpc_failures, kpis.nmpc_fallback_s
     if fallback > settings.nmpc_max_fallback_s:
         found.append(
             f"{failures} NMPC failures: {fallback:.1f} s on the fallback law "
             f"(bound {settings.nmpc_max_fallback_s:g} s)"
         )
-    solve = kpis.get("nmpc_ms") or {}
-    longest = solve.get("max")
+    longest = None if kpis.nmpc_ms is None else kpis.nmpc_ms.max
     if longest is not None and settings.nmpc_max_ms is not None and longest > settings.nmpc_max_ms:
         found.append(f"NMPC solve of {longest:.1f} ms (bound {settings.nmpc_max_ms:g} ms)")
     return found
@@ -238,7 +234,7 @@ def judge(
     ]
 
 
-def invariant_expectations(spec: ScenarioSpec, kpis: Kpis) -> list[dict[str, Any]]:
+def invariant_expectations(spec: ScenarioSpec, kpis: Kpis) -> list[ExpectationResult]:
     """The invariants as ``kpis.json`` expectations: one entry per invariant judged."""
     settings = spec.invariants or InvariantSettings()
     violations = judge(spec, kpis, settings=settings)
@@ -248,6 +244,8 @@ def invariant_expectations(spec: ScenarioSpec, kpis: Kpis) -> list[dict[str, Any
             continue
         found = [v.detail for v in violations if v.invariant == name]
         entries.append(
-            {"name": f"invariant {name}", "ok": not found, "detail": "; ".join(found) or "holds"}
+            ExpectationResult(
+                name=f"invariant {name}", ok=not found, detail="; ".join(found) or "holds"
+            )
         )
     return entries

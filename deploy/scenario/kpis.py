@@ -1,10 +1,13 @@
 """The KPIs of a run (``kpis.json``, CONTRACT.md §4) and the check of a scenario's expectations.
 
-:func:`compute_kpis` turns a run's telemetry, stops and counters into the contract's keys;
-:func:`check_expectations` compares them with the scenario's ``[[expect]]`` entries. A KPI path
-is a key (``max_overspeed_kmh``), a key and a member (``position_error_m.rms``), or a list
-and a member of its items (``stops.stop_error_m``: the expectation holds when it holds for
-every stop; ``stops.count`` is the list's length).
+:func:`compute_kpis` turns a run's telemetry, stops and counters into the train's fields of
+:class:`~deploy.scenario.kpi_model.Kpis`; :func:`check_expectations` compares a run's
+:class:`Kpis` with the scenario's ``[[expect]]`` entries. A KPI path names a field as
+``kpis.json`` writes it: a key (``max_overspeed_kmh``), a key and a member
+(``position_error_m.rms``), or a list and a member of its items (``stops.stop_error_m``: the
+expectation holds when it holds for every stop; ``stops.count`` is the list's length). The
+verdict and the wall time (``passed``, ``expectations``, ``wall_time_s``,
+``real_time_factor``) are not judged: they are set after the check.
 """
 
 from __future__ import annotations
@@ -16,12 +19,22 @@ from typing import Any
 
 import numpy as np
 
+from deploy.scenario.kpi_model import (
+    EstimateError,
+    ExpectationResult,
+    Kpis,
+    OdometryInterval,
+    ServedStop,
+    SolveTimes,
+    VcIntervention,
+)
 from deploy.scenario.schema import Expectation
 from deploy.stats import percentiles
 from protocol.units import J_PER_KWH, MPS_PER_KMH
 
 __all__ = [
     "JERK_MIN_SPEED_MPS",
+    "NOT_JUDGED",
     "RunCounters",
     "check_expectations",
     "compute_kpis",
@@ -86,23 +99,24 @@ def _max_switch_fraction(columns: Mapping[str, np.ndarray], force_range_n: float
     return max(jumps) / force_range_n if jumps else None
 
 
-def _percentiles_ms(samples: Sequence[float]) -> dict[str, float] | None:
+def _percentiles_ms(samples: Sequence[float]) -> SolveTimes | None:
     if not samples:
         return None
     values = np.asarray(samples) * 1000.0
     p50, p99 = percentiles(values, (50, 99))
-    return {"p50": p50, "p99": p99, "max": float(values.max())}
+    return SolveTimes(p50=p50, p99=p99, max=float(values.max()))
 
 
 def compute_kpis(
     columns: Mapping[str, np.ndarray],
     *,
-    stops: Sequence[Mapping[str, Any]],
+    stops: Sequence[ServedStop],
     counters: RunCounters,
     position_errors_m: np.ndarray,
-    vc_interventions: Sequence[Mapping[str, Any]],
+    vc_interventions: Sequence[VcIntervention],
 ) -> dict[str, Any]:
-    """The contract's KPIs, but the run's identity and wall-clock keys (added by the runner)."""
+    """The train's fields of :class:`Kpis` by name (the run's identity, its margins, its
+    record and its verdict are the outcome's, the wall-clock fields the runner's)."""
     errors = np.abs(position_errors_m[np.isfinite(position_errors_m)])
     return {
         "stops": list(stops),
@@ -117,10 +131,7 @@ def compute_kpis(
         "ad_speed_rms_kmh": _speed_rms_kmh(columns, "AD"),
         "rd_speed_rms_kmh": _speed_rms_kmh(columns, "RD"),
         "max_switch_du_frac": _max_switch_fraction(columns, counters.force_range_n),
-        "position_error_m": {
-            "rms": _rms(errors) or 0.0,
-            "max": float(errors.max()) if errors.size else 0.0,
-        },
+        "position_error_m": _error_stats(errors),
         "nmpc_ms": _percentiles_ms(counters.nmpc_solve_times_s),
         "nmpc_failures": counters.nmpc_failures,
         "nmpc_fallback_s": counters.nmpc_failures * counters.nmpc_step_s,
@@ -131,28 +142,32 @@ def compute_kpis(
     }
 
 
-def _error_kpi(columns: Mapping[str, np.ndarray], estimate: str) -> dict[str, float] | None:
+def _error_stats(errors: np.ndarray) -> EstimateError:
+    """{rms, max} of finite absolute errors [m]; 0 without any."""
+    return EstimateError(rms=_rms(errors) or 0.0, max=float(errors.max()) if errors.size else 0.0)
+
+
+def _error_kpi(columns: Mapping[str, np.ndarray], estimate: str) -> EstimateError | None:
     """{rms, max} of |estimate − true position| [m]; None without the column."""
     if estimate not in columns:
         return None
     errors = np.abs(columns[estimate] - columns["position_m"])
-    errors = errors[np.isfinite(errors)]
-    return {"rms": _rms(errors) or 0.0, "max": float(errors.max()) if errors.size else 0.0}
+    return _error_stats(errors[np.isfinite(errors)])
 
 
 def odometry_interval_kpi(
     columns: Mapping[str, np.ndarray], at_stops_m: Sequence[float], *, outside_m: float
-) -> dict[str, Any] | None:
+) -> OdometryInterval | None:
     """ETCS's confidence interval [m]: its max over the run, at each stop, and how far the true
     front end ever was outside it (``outside_max_m``, 0 when it never was)."""
     values = columns.get("odometry_interval_m")
     if values is None:
         return None
-    return {
-        "max": _finite_max(values),
-        "at_stops": [float(v) for v in at_stops_m],
-        "outside_max_m": max(outside_m, 0.0),
-    }
+    return OdometryInterval(
+        max=_finite_max(values),
+        at_stops=[float(v) for v in at_stops_m],
+        outside_max_m=max(outside_m, 0.0),
+    )
 
 
 def _finite_max(values: np.ndarray | None) -> float | None:
@@ -205,8 +220,27 @@ def _energy_kpis(columns: Mapping[str, np.ndarray]) -> dict[str, float | None]:
     }
 
 
-def kpi_value(kpis: Mapping[str, Any], path: str) -> Any:
-    """The value at ``path``; a list's member gives the list of its items' values."""
+NOT_JUDGED = frozenset({"passed", "expectations", "wall_time_s", "real_time_factor"})
+"""Fields an expectation cannot name: the verdict, and the wall time (set after the check)."""
+
+
+def kpi_value(kpis: Kpis, path: str) -> Any:
+    """The value at ``path``; a list's member gives the list of its items' values.
+
+    Raises
+    ------
+    KeyError
+        ``path`` names no KPI of the run.
+    """
+    return _value_at(_judged_fields(kpis), path)
+
+
+def _judged_fields(kpis: Kpis) -> dict[str, Any]:
+    """The run's KPIs as ``kpis.json`` writes them, but the fields not judged."""
+    return kpis.model_dump(exclude=set(NOT_JUDGED))
+
+
+def _value_at(kpis: Mapping[str, Any], path: str) -> Any:
     head, _, rest = path.partition(".")
     if head not in kpis:
         raise KeyError(f"no KPI {head!r}")
@@ -245,18 +279,17 @@ def _holds(value: Any, op: str, expected: Any) -> bool:
     return bool(comparisons[op])
 
 
-def check_expectations(
-    kpis: Mapping[str, Any], expectations: Sequence[Expectation]
-) -> list[dict[str, Any]]:
+def check_expectations(kpis: Kpis, expectations: Sequence[Expectation]) -> list[ExpectationResult]:
     """Each expectation with whether it holds and what was found."""
+    fields = _judged_fields(kpis)
     results = []
     for expectation in expectations:
         name = expectation.name or f"{expectation.kpi} {expectation.op} {expectation.value}"
         try:
-            value = kpi_value(kpis, expectation.kpi)
+            value = _value_at(fields, expectation.kpi)
         except KeyError as exc:
-            results.append({"name": name, "ok": False, "detail": str(exc.args[0])})
+            results.append(ExpectationResult(name=name, ok=False, detail=str(exc.args[0])))
             continue
         ok = _holds(value, expectation.op, expectation.value)
-        results.append({"name": name, "ok": ok, "detail": f"found {value!r}"})
+        results.append(ExpectationResult(name=name, ok=ok, detail=f"found {value!r}"))
     return results

@@ -1,20 +1,30 @@
 """The outcome of a run: its KPIs (``kpis.json``, CONTRACT.md §4), its telemetry, its verdict.
 
 :func:`build_outcome` reads a finished whole-stack run (the node's counters, the telemetry
-recorder's samples and records, the run's log) into the contract's KPIs, checks the scenario's
-expectations and invariants, and orders the keys as the contract lists them.
+recorder's samples and records, the run's log) into its :class:`~deploy.scenario.kpi_model.Kpis`
+and checks the scenario's expectations and invariants on them.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from deploy.scenario.invariants import invariant_expectations
+from deploy.scenario.kpi_model import (
+    ActionRecord,
+    ExpectationResult,
+    Kpis,
+    ServedStop,
+    SessionOutage,
+    TaskWallTime,
+    WallTimeBreakdown,
+    ZenohLinkRecord,
+)
 from deploy.scenario.kpis import (
     RunCounters,
     check_expectations,
@@ -22,68 +32,74 @@ from deploy.scenario.kpis import (
     odometry_interval_kpi,
 )
 from deploy.scenario.run_context import RunContext
-from deploy.scenario.schema import OdometerFailure, SensorDropout
+from deploy.scenario.schema import OdometerFailure, ScenarioSpec, SensorDropout
 from deploy.scenario.zenoh_link import ZenohLinkFault
 from onboard.ato_ob.transitions import Trigger
 from onboard.runtime import TaskStats
 from protocol.units import MPS_PER_KMH
 
-__all__ = ["RunOutcome", "build_outcome", "ordered_keys"]
+__all__ = ["RunOutcome", "build_outcome"]
 
 
 @dataclass
 class RunOutcome:
-    kpis: dict[str, Any]
+    kpis: Kpis
     columns: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def passed(self) -> bool:
-        return bool(self.kpis["passed"])
-
-
-def ordered_keys(kpis: dict[str, Any]) -> dict[str, Any]:
-    """The run's identity first, as CONTRACT.md §4 lists it, then the rest in their order."""
-    first = ("scenario", "passed", "seed", "sim_time_s", "wall_time_s", "real_time_factor")
-    return {key: kpis[key] for key in first if key in kpis} | {
-        key: value for key, value in kpis.items() if key not in first
-    }
+        return self.kpis.passed
 
 
 def build_outcome(ctx: RunContext, link: ZenohLinkFault | None) -> RunOutcome:
     """The KPIs of the finished run, its expectations checked, with its telemetry."""
     node, recorder = ctx.node, ctx.recorder
     columns = recorder.arrays()
-    kpis = compute_kpis(
+    train = compute_kpis(
         columns,
         stops=[
-            {
-                "name": stop.name,
-                "planned_arrival_s": stop.planned_arrival_s,
-                "arrival_error_s": stop.arrival_s - stop.planned_arrival_s,
-                "stop_error_m": stop.stop_error_m,
-                "odometry_interval_m": stop.odometry_interval_m,
-            }
+            ServedStop(
+                name=stop.name,
+                planned_arrival_s=stop.planned_arrival_s,
+                arrival_error_s=stop.arrival_s - stop.planned_arrival_s,
+                stop_error_m=stop.stop_error_m,
+                odometry_interval_m=stop.odometry_interval_m,
+            )
             for stop in recorder.stops
         ],
         counters=_counters(ctx),
         position_errors_m=columns["estimated_position_m"] - columns["position_m"],
         vc_interventions=recorder.vc_interventions,
     )
-    kpis["odometry_interval_m"] = odometry_interval_kpi(
-        columns,
-        [stop.odometry_interval_m for stop in recorder.stops],
-        outside_m=recorder.maxima.outside_interval_m,
+    kpis = Kpis(
+        **train,
+        **_run_kpis(ctx, link),
+        odometry_interval_m=odometry_interval_kpi(
+            columns,
+            [stop.odometry_interval_m for stop in recorder.stops],
+            outside_m=recorder.maxima.outside_interval_m,
+        ),
+        wall_time_breakdown=_wall_time_breakdown(node.executive.stats, ctx.lockstep_wall_s),
+        actions=[ActionRecord(**vars(item)) for item in ctx.actions],
+        # The verdict is _judge's, the wall clock run_scenario's once the run is over.
+        passed=False,
+        expectations=[],
+        wall_time_s=0.0,
+        real_time_factor=0.0,
     )
-    kpis.update(_run_kpis(ctx, link))
-    kpis["wall_time_breakdown"] = _wall_time_breakdown(node.executive.stats, ctx.lockstep_wall_s)
-    kpis["actions"] = [vars(item) for item in ctx.actions]
-    expectations = check_expectations(kpis, ctx.spec.expect)
-    expectations += [{"name": failure, "ok": False, "detail": failure} for failure in ctx.failures]
-    if ctx.spec.invariants is not None:
-        expectations += invariant_expectations(ctx.spec, kpis)
-    kpis["expectations"] = expectations
-    kpis["passed"] = all(item["ok"] for item in expectations)
-    return RunOutcome(ordered_keys(kpis), columns)
+    failures = [ExpectationResult(name=text, ok=False, detail=text) for text in ctx.failures]
+    _judge(kpis, ctx.spec, failures)
+    return RunOutcome(kpis, columns)
+
+
+def _judge(kpis: Kpis, spec: ScenarioSpec, failures: Sequence[ExpectationResult] = ()) -> None:
+    """Set the run's ``expectations`` (the scenario's, the run's ``failures``, the invariants
+    when the scenario asks for them) and ``passed``, every one held."""
+    expectations = check_expectations(kpis, spec.expect) + list(failures)
+    if spec.invariants is not None:
+        expectations += invariant_expectations(spec, kpis)
+    kpis.expectations = expectations
+    kpis.passed = all(item.ok for item in expectations)
 
 
 def _counters(ctx: RunContext) -> RunCounters:
@@ -105,7 +121,8 @@ def _counters(ctx: RunContext) -> RunCounters:
 
 
 def _run_kpis(ctx: RunContext, link: ZenohLinkFault | None) -> dict[str, Any]:
-    """The run's identity, its margins and the sessions' and the link's record."""
+    """The run's identity, its margins and the sessions' and the link's record: fields of
+    :class:`Kpis` by name."""
     node, recorder, fast = ctx.node, ctx.recorder, ctx.options.fast
     return {
         "scenario": ctx.spec.name,
@@ -125,7 +142,7 @@ def _run_kpis(ctx: RunContext, link: ZenohLinkFault | None) -> dict[str, Any]:
         "lockstep_report_retransmissions": node.report_retransmissions if fast else None,
         "session_losses": node.session_client.counters.lost,
         "sessions_established": node.session_client.counters.accepted,
-        "session_outages": ctx.session_outages,
+        "session_outages": [SessionOutage(**outage) for outage in ctx.session_outages],
         "fallback_stops": sum(
             1
             for t in node.stack.controller.transitions
@@ -133,11 +150,11 @@ def _run_kpis(ctx: RunContext, link: ZenohLinkFault | None) -> dict[str, Any]:
         ),
         "zenoh_link": None
         if link is None
-        else {
-            "cuts": link.proxy.stats().cuts,
-            "connections_dropped": link.connections_dropped,
-            "flaps_on_restore": link.flaps,
-        },
+        else ZenohLinkRecord(
+            cuts=link.proxy.stats().cuts,
+            connections_dropped=link.connections_dropped,
+            flaps_on_restore=link.flaps,
+        ),
     }
 
 
@@ -155,24 +172,24 @@ def _odometer_detection_s(ctx: RunContext) -> float | None:
     return round(lost - min(starts), 3)
 
 
-def _wall_time_breakdown(stats: Mapping[str, TaskStats], lockstep_s: float) -> dict[str, Any]:
+def _wall_time_breakdown(stats: Mapping[str, TaskStats], lockstep_s: float) -> WallTimeBreakdown:
     """Where the wall time of the stepping went: each task's bodies, and the rest (the
     executive's own work and the slices' bookkeeping), largest first. A wall-clock field."""
     tasks = sorted(stats.items(), key=lambda item: item[1].exec_total_ns, reverse=True)
     in_tasks_s = sum(task.exec_total_ns for _, task in tasks) / 1e9
-    return {
-        "lockstep_s": round(lockstep_s, 3),
-        "tasks": {
-            name: {
-                "releases": task.releases,
-                "total_s": round(task.exec_total_ns / 1e9, 3),
-                "mean_us": round(task.exec_mean_ns / 1e3, 1),
-                "share": round(task.exec_total_ns / 1e9 / lockstep_s, 4) if lockstep_s else None,
-            }
+    return WallTimeBreakdown(
+        lockstep_s=round(lockstep_s, 3),
+        tasks={
+            name: TaskWallTime(
+                releases=task.releases,
+                total_s=round(task.exec_total_ns / 1e9, 3),
+                mean_us=round(task.exec_mean_ns / 1e3, 1),
+                share=round(task.exec_total_ns / 1e9 / lockstep_s, 4) if lockstep_s else None,
+            )
             for name, task in tasks
         },
-        "executive_and_slices_s": round(lockstep_s - in_tasks_s, 3),
-    }
+        executive_and_slices_s=round(lockstep_s - in_tasks_s, 3),
+    )
 
 
 def _finite(value: float) -> float | None:

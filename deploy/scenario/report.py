@@ -13,7 +13,6 @@ import html
 import io
 import json
 from collections.abc import Mapping, Sequence
-from typing import Any
 
 import matplotlib
 
@@ -23,6 +22,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
+from deploy.scenario.kpi_model import Kpis
 from protocol.units import J_PER_KWH, MPS_PER_KMH
 
 __all__ = ["render_report"]
@@ -132,7 +132,7 @@ def _table(rows: Sequence[tuple[str, str]]) -> str:
     return f"<table>{body}</table>"
 
 
-def render_report(kpis: Mapping[str, Any], columns: Mapping[str, np.ndarray]) -> str:
+def render_report(kpis: Kpis, columns: Mapping[str, np.ndarray]) -> str:
     """The report's HTML."""
     figures: list[str] = []
     if columns["time_s"].size:
@@ -143,27 +143,28 @@ def render_report(kpis: Mapping[str, Any], columns: Mapping[str, np.ndarray]) ->
             _png(_timeline_figure(columns)),
         ]
     expectations = "".join(
-        f'<tr class="{"ok" if e["ok"] else "fail"}"><td>{"✔" if e["ok"] else "✘"}</td>'
-        f"<td>{html.escape(e['name'])}</td><td>{html.escape(e['detail'])}</td></tr>"
-        for e in kpis.get("expectations", [])
+        f'<tr class="{"ok" if e.ok else "fail"}"><td>{"✔" if e.ok else "✘"}</td>'
+        f"<td>{html.escape(e.name)}</td><td>{html.escape(e.detail)}</td></tr>"
+        for e in kpis.expectations
     )
     stops = "".join(
-        f"<tr><td>{html.escape(s['name'])}</td><td>{s['planned_arrival_s']:.1f}</td>"
-        f"<td>{s['arrival_error_s']:+.2f}</td><td>{s['stop_error_m']:+.3f}</td>"
-        f"<td>{s.get('odometry_interval_m', float('nan')):.1f}</td></tr>"
-        for s in kpis.get("stops", [])
+        f"<tr><td>{html.escape(s.name)}</td><td>{s.planned_arrival_s:.1f}</td>"
+        f"<td>{s.arrival_error_s:+.2f}</td><td>{s.stop_error_m:+.3f}</td>"
+        f"<td>{s.odometry_interval_m:.1f}</td></tr>"
+        for s in kpis.stops
     )
+    written = kpis.model_dump(mode="json")
     scalars = [
         (k, json.dumps(v))
-        for k, v in kpis.items()
+        for k, v in written.items()
         if k not in ("stops", "expectations", "vc_interventions")
     ]
-    verdict = "passed" if kpis.get("passed") else "FAILED"
-    interventions = html.escape(json.dumps(kpis.get("vc_interventions", []), indent=1))
+    verdict = "passed" if kpis.passed else "FAILED"
+    interventions = html.escape(json.dumps(written["vc_interventions"], indent=1))
     images = "".join(f'<img alt="plot" src="data:image/png;base64,{p}">' for p in figures)
     return f"""<!doctype html>
 <html lang="en"><head><meta charset="utf-8">
-<title>ato run {html.escape(str(kpis.get("scenario")))}</title>
+<title>ato run {html.escape(kpis.scenario)}</title>
 <style>
 body {{ font-family: sans-serif; margin: 2em; max-width: 1000px; }}
 table {{ border-collapse: collapse; margin: 1em 0; }}
@@ -171,9 +172,9 @@ td, th {{ border: 1px solid #ccc; padding: 0.2em 0.6em; text-align: left; font-s
 tr.ok td:first-child {{ color: green; }} tr.fail td {{ color: #b00; }}
 img {{ max-width: 100%; margin: 1em 0; }}
 </style></head><body>
-<h1>Scenario {html.escape(str(kpis.get("scenario")))}: {verdict}</h1>
-<p>Seed {kpis.get("seed")}, {kpis.get("sim_time_s", 0):.1f} s simulated in
-{kpis.get("wall_time_s", 0):.1f} s ({kpis.get("real_time_factor", 0):.1f}× real time).</p>
+<h1>Scenario {html.escape(kpis.scenario)}: {verdict}</h1>
+<p>Seed {kpis.seed}, {kpis.sim_time_s:.1f} s simulated in
+{kpis.wall_time_s:.1f} s ({kpis.real_time_factor:.1f}× real time).</p>
 <h2>Expectations</h2><table>{expectations}</table>
 <h2>Stops</h2><table><tr><th>stop</th><th>planned arrival [s]</th><th>arrival error [s]</th>
 <th>stop error [m]</th><th>ETCS interval [m]</th></tr>{stops}</table>

@@ -20,7 +20,6 @@ Scenarios with a ``[vc]`` table run one scenario of the Vital Control catalogue 
 
 from __future__ import annotations
 
-import json
 import math
 import tempfile
 import time
@@ -28,7 +27,6 @@ from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -38,9 +36,10 @@ from deploy.link_proxy import LinkProxy
 from deploy.ports import loopback_endpoint
 from deploy.scenario.conditions import State
 from deploy.scenario.fault_injector import FaultInjector
+from deploy.scenario.kpi_model import EstimateError, Kpis, VcIntervention
 from deploy.scenario.kpis import check_expectations
 from deploy.scenario.operator_script import OperatorScript
-from deploy.scenario.outcome import RunOutcome, build_outcome, ordered_keys
+from deploy.scenario.outcome import RunOutcome, build_outcome
 from deploy.scenario.report import render_report
 from deploy.scenario.run_context import (
     LINK_WAIT_S,
@@ -89,6 +88,8 @@ __all__ = [
 
 SLICE_S = 0.2
 """Simulated time between two looks of the operator [s] (one control period)."""
+MIN_WALL_S = 1e-9
+"""The least wall time a run is taken to last, for its real-time factor [s]."""
 STANDSTILL_KMH = 0.036
 WHOLE_STACK_FAULTS = (
     AtoFailure,
@@ -132,7 +133,8 @@ def run_scenario(
     *,
     progress: ProgressCallback | None = None,
 ) -> RunOutcome:
-    """Run ``spec``; the outcome's ``kpis`` follow CONTRACT.md §4."""
+    """Run ``spec``; the outcome's ``kpis`` (a :class:`~deploy.scenario.kpi_model.Kpis`) follow
+    CONTRACT.md §4."""
     seed = spec.seed if options.seed is None else options.seed
     started = time.perf_counter()
     if spec.vc is not None:
@@ -141,13 +143,13 @@ def run_scenario(
         with WholeStackRun.open(spec, options, seed) as run:
             outcome = run.run(progress)
     wall_s = time.perf_counter() - started
-    sim_s = float(outcome.kpis["sim_time_s"])
-    outcome.kpis.update(
-        wall_time_s=wall_s, real_time_factor=sim_s / wall_s if wall_s > 0 else math.inf
-    )
-    breakdown = outcome.kpis.get("wall_time_breakdown")
+    kpis = outcome.kpis
+    # The factor is a float of the contract: a run measured at 0 s (it never is) would be inf.
+    kpis.wall_time_s = wall_s
+    kpis.real_time_factor = kpis.sim_time_s / max(wall_s, MIN_WALL_S)
+    breakdown = kpis.wall_time_breakdown
     if breakdown is not None:
-        breakdown["outside_lockstep_s"] = round(wall_s - breakdown["lockstep_s"], 3)
+        breakdown.outside_lockstep_s = round(wall_s - breakdown.lockstep_s, 3)
     if options.report_dir is not None:
         write_report(outcome, options.report_dir)
     return outcome
@@ -156,7 +158,7 @@ def run_scenario(
 def write_report(outcome: RunOutcome, directory: Path) -> None:
     """``kpis.json``, and for whole-stack runs ``telemetry.npz`` and ``report.html``."""
     directory.mkdir(parents=True, exist_ok=True)
-    (directory / "kpis.json").write_text(json.dumps(outcome.kpis, indent=2, allow_nan=False))
+    (directory / "kpis.json").write_text(outcome.kpis.model_dump_json(indent=2), encoding="utf-8")
     if outcome.columns:
         np.savez_compressed(directory / "telemetry.npz", **outcome.columns)  # type: ignore[arg-type]
         (directory / "report.html").write_text(render_report(outcome.kpis, outcome.columns))
@@ -178,53 +180,56 @@ def _run_vc(spec: ScenarioSpec, seed: int) -> RunOutcome:
     except KeyError as exc:
         raise ScenarioRunError(f"no VC catalogue scenario {spec.vc.catalogue!r}") from exc
     result = run_vc_scenario(scenario, replicas=spec.vc.replicas, seed=seed)
-    kpis: dict[str, Any] = {
-        "scenario": spec.name,
-        "seed": seed,
-        "sim_time_s": scenario.duration_s,
-        "stops": [],
-        "eoa_stops": [],
-        "max_overspeed_kmh": 0.0,
-        "etcs_sb_count": 0,
-        "etcs_eb_count": 0,
-        "vc_eb_count": sum(1 for e in result.events if e.kind.value == "eb_commanded"),
-        "system_decay": result.decay_s is not None,
-        "traction_energy_kwh": 0.0,
-        "regen_energy_kwh": 0.0,
-        "max_jerk_mps3": 0.0,
-        "ad_speed_rms_kmh": None,
-        "rd_speed_rms_kmh": None,
-        "max_switch_du_frac": None,
-        "position_error_m": {"rms": 0.0, "max": 0.0},
-        "nmpc_ms": None,
-        "nmpc_failures": 0,
-        "nmpc_fallback_s": 0.0,
-        "vc_interventions": _vc_interventions(result),
-        "vc_outcome": result.outcome.value,
-        "vc_expected_outcome": result.expected.value,
-        "vc_decay_reasons": list(result.decay_reasons),
-    }
-    kpis["expectations"] = check_expectations(kpis, spec.expect)
-    kpis["passed"] = all(item["ok"] for item in kpis["expectations"])
-    return RunOutcome(ordered_keys(kpis))
+    kpis = Kpis(
+        scenario=spec.name,
+        seed=seed,
+        sim_time_s=scenario.duration_s,
+        stops=[],
+        eoa_stops=[],
+        max_overspeed_kmh=0.0,
+        etcs_sb_count=0,
+        etcs_eb_count=0,
+        vc_eb_count=sum(1 for e in result.events if e.kind.value == "eb_commanded"),
+        system_decay=result.decay_s is not None,
+        traction_energy_kwh=0.0,
+        regen_energy_kwh=0.0,
+        max_jerk_mps3=0.0,
+        ad_speed_rms_kmh=None,
+        rd_speed_rms_kmh=None,
+        max_switch_du_frac=None,
+        position_error_m=EstimateError(rms=0.0, max=0.0),
+        nmpc_ms=None,
+        nmpc_failures=0,
+        nmpc_fallback_s=0.0,
+        vc_interventions=_vc_interventions(result),
+        vc_outcome=result.outcome.value,
+        vc_expected_outcome=result.expected.value,
+        vc_decay_reasons=list(result.decay_reasons),
+        # The verdict is set below, the wall clock by run_scenario once the run is over.
+        passed=False,
+        expectations=[],
+        wall_time_s=0.0,
+        real_time_factor=0.0,
+    )
+    kpis.expectations = check_expectations(kpis, spec.expect)
+    kpis.passed = all(item.ok for item in kpis.expectations)
+    return RunOutcome(kpis)
 
 
-def _vc_interventions(result: ScenarioResult) -> list[dict[str, Any]]:
+def _vc_interventions(result: ScenarioResult) -> list[VcIntervention]:
     if result.eb_command_s is None:
         return []
     hazard = result.hazard_s
     return [
-        {
-            "cause": result.key,
-            "hazard_to_eb_command_ms": None
-            if hazard is None
-            else _ms(result.eb_command_s - hazard),
-            "total_to_full_eb_ms": (
+        VcIntervention(
+            cause=result.key,
+            hazard_to_eb_command_ms=None if hazard is None else _ms(result.eb_command_s - hazard),
+            total_to_full_eb_ms=(
                 None
                 if hazard is None or result.full_eb_s is None
                 else _ms(result.full_eb_s - hazard)
             ),
-        }
+        )
     ]
 
 

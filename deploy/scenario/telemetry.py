@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from deploy.scenario.kpi_model import EoaStop, VcIntervention
 from onboard.node import TASK_TABLE, OnboardNode
 from onboard.plant.interfaces import BogieTruth
 from onboard.runtime.clock import NS_PER_S
@@ -82,12 +83,12 @@ class EoaStopRecord:
     odometry_interval_m: float
     """ETCS's confidence interval then (the larger of over- and under-reading) [m]."""
 
-    def as_kpi(self) -> dict[str, float]:
-        return {
-            "time_s": self.time_s,
-            "distance_to_eoa_m": self.distance_to_eoa_m,
-            "odometry_interval_m": self.odometry_interval_m,
-        }
+    def as_kpi(self) -> EoaStop:
+        return EoaStop(
+            time_s=self.time_s,
+            distance_to_eoa_m=self.distance_to_eoa_m,
+            odometry_interval_m=self.odometry_interval_m,
+        )
 
 
 EOA_SAME_M = 0.5
@@ -119,17 +120,17 @@ class _Intervention:
     hazard_s: float | None
     full_s: float | None = None
 
-    def as_kpi(self) -> dict[str, Any]:
+    def as_kpi(self) -> VcIntervention:
         def ms(end_s: float | None) -> float | None:
             if end_s is None or self.hazard_s is None:
                 return None
             return round((end_s - self.hazard_s) * 1000.0, 3)
 
-        return {
-            "cause": self.cause,
-            "hazard_to_eb_command_ms": ms(self.command_s),
-            "total_to_full_eb_ms": ms(self.full_s),
-        }
+        return VcIntervention(
+            cause=self.cause,
+            hazard_to_eb_command_ms=ms(self.command_s),
+            total_to_full_eb_ms=ms(self.full_s),
+        )
 
 
 @dataclass
@@ -263,7 +264,7 @@ class TelemetryRecorder:
             last.full_s = now_s
 
     @property
-    def vc_interventions(self) -> list[dict[str, Any]]:
+    def vc_interventions(self) -> list[VcIntervention]:
         """``kpis.json``'s ``vc_interventions``: hazard → EB command, hazard → full EB."""
         return [item.as_kpi() for item in self.interventions]
 

@@ -11,23 +11,31 @@ import pytest
 from rich.console import Console
 
 from deploy.bench.run_bench import RunSample, bench_run, run_once, summarise
+from deploy.scenario.kpi_model import Kpis
+from tests.deploy.kpi_samples import sample_kpis
 
 SCENARIOS = Path(__file__).resolve().parents[2] / "deploy" / "scenarios"
 
 
-def _kpis(factor: float, *, passed: bool = True, control_share: float = 0.3) -> dict[str, Any]:
-    return {
-        "passed": passed,
-        "sim_time_s": 1000.0,
-        "wall_time_s": 1000.0 / factor,
-        "real_time_factor": factor,
-        "wall_time_breakdown": {
+def _task(mean_us: float, share: float) -> dict[str, Any]:
+    return {"releases": 1000, "total_s": 1.0, "mean_us": mean_us, "share": share}
+
+
+def _kpis(factor: float, *, passed: bool = True, control_share: float = 0.3) -> Kpis:
+    return sample_kpis(
+        passed=passed,
+        sim_time_s=1000.0,
+        wall_time_s=1000.0 / factor,
+        real_time_factor=factor,
+        wall_time_breakdown={
+            "lockstep_s": 900.0 / factor,
             "tasks": {
-                "sfa": {"mean_us": 40.0 + factor, "share": 0.25},
-                "control": {"mean_us": 900.0 + factor, "share": control_share},
-            }
+                "sfa": _task(40.0 + factor, 0.25),
+                "control": _task(900.0 + factor, control_share),
+            },
+            "executive_and_slices_s": 1.0,
         },
-    }
+    )
 
 
 def test_summarise_gives_median_worst_best_and_counts_what_did_not_pass_or_run() -> None:
@@ -65,11 +73,12 @@ def test_run_once_reads_a_real_run_and_reports_its_failed_expectations(tmp_path:
     sample = run_once(str(short), timeout_s=300.0)
     assert sample.kpis is not None, sample.error
     assert sample.exit_code == 1
-    assert sample.kpis["passed"] is False
-    assert sample.kpis["sim_time_s"] == pytest.approx(30.0, abs=0.5)
+    assert sample.kpis.passed is False
+    assert sample.kpis.sim_time_s == pytest.approx(30.0, abs=0.5)
     assert sample.real_time_factor is not None
     assert sample.real_time_factor > 0
-    assert "control" in sample.kpis["wall_time_breakdown"]["tasks"]
+    assert sample.kpis.wall_time_breakdown is not None
+    assert "control" in sample.kpis.wall_time_breakdown.tasks
     missing = run_once(str(tmp_path / "no-such.toml"), timeout_s=120.0)
     assert missing.kpis is None
     assert missing.exit_code == 2

@@ -19,6 +19,7 @@ from deploy.scenario.campaign import (
     parse_variation,
     summarise,
 )
+from tests.deploy.kpi_samples import sample_kpis
 
 
 def test_variations_parse_and_set_a_field_by_its_path() -> None:
@@ -42,21 +43,19 @@ def test_the_matrix_is_the_product_of_scenarios_seeds_and_variations() -> None:
 
 
 def test_unsafe_outcomes_are_told_from_failed_expectations() -> None:
-    base = {
-        "passed": False,
-        "expectations": [],
-        "max_overspeed_kmh": 1.0,
-        "min_eoa_margin_m": 3.0,
-        "min_obstacle_margin_m": None,
-    }
-    assert CellResult(Cell("s", 0), base).unsafe == []  # 1 km/h over: below dV_ebi
-    unsafe = CellResult(Cell("s", 0), base | {"max_overspeed_kmh": 9.0, "min_eoa_margin_m": -0.5})
+    base = {"passed": False, "max_overspeed_kmh": 1.0, "min_eoa_margin_m": 3.0}
+    assert CellResult(Cell("s", 0), sample_kpis(**base)).unsafe == []  # below dV_ebi
+    worse = sample_kpis(**base | {"max_overspeed_kmh": 9.0, "min_eoa_margin_m": -0.5})
+    unsafe = CellResult(Cell("s", 0), worse)
     assert len(unsafe.unsafe) == 2
     crashed = CellResult(Cell("s", 1), None, "Traceback ...")
     summary = summarise([unsafe, crashed])
     assert summary["unsafe"] == 1
     assert summary["crashed"] == 1
     assert summary["scenarios"]["s"]["kpis"]["max_overspeed_kmh"]["max"] == 9.0
+    assert summary["scenarios"]["s"]["kpis"]["position_error_m.rms"]["max"] == 0.2
+    assert summary["scenarios"]["s"]["kpis"]["stops.stop_error_m.abs"]["max"] == 0.1
+    assert summary["cells"][0]["stops"] == {"stop_error_m": [0.1], "arrival_error_s": [1.0]}
 
 
 def test_a_campaign_over_worker_processes_writes_its_summary(tmp_path: Path) -> None:
@@ -85,5 +84,5 @@ def test_workers_are_replaced_and_the_results_keep_the_cells_order(
     seen: list[str] = []
     results = campaign.run_campaign(cells, workers=2, on_result=lambda r: seen.append(r.cell.label))
     assert [r.cell for r in results] == cells
-    assert all(r.kpis is not None and r.kpis["passed"] for r in results)
+    assert all(r.kpis is not None and r.kpis.passed for r in results)
     assert sorted(seen) == sorted(cell.label for cell in cells)

@@ -15,11 +15,11 @@ pytestmark = pytest.mark.e2e
 @pytest.mark.parametrize("name", FAULT_SCENARIOS)
 def test_fault_scenario_meets_its_expectations(name: str) -> None:
     kpis = run_scenario(load_scenario(name), RunOptions(fast=True)).kpis
-    failed = [item for item in kpis["expectations"] if not item["ok"]]
+    failed = [item for item in kpis.expectations if not item.ok]
     assert not failed, failed
-    assert kpis["max_overspeed_kmh"] <= 0.0
-    if kpis["min_eoa_margin_m"] is not None:
-        assert kpis["min_eoa_margin_m"] >= 0.0
+    assert kpis.max_overspeed_kmh <= 0.0
+    if kpis.min_eoa_margin_m is not None:
+        assert kpis.min_eoa_margin_m >= 0.0
 
 
 def test_the_simulated_operator_engages_again_after_a_fallback_stop() -> None:
@@ -35,7 +35,7 @@ def test_the_simulated_operator_engages_again_after_a_fallback_stop() -> None:
         }
     )
     kpis = run_scenario(spec, RunOptions(fast=True)).kpis
-    done = [a for a in kpis["actions"] if a["action"] == "engage" and a["accepted"]]
+    done = [a for a in kpis.actions or [] if a.action == "engage" and a.accepted]
     assert len(done) >= 2
-    failed = [item for item in kpis["expectations"] if not item["ok"]]
+    failed = [item for item in kpis.expectations if not item.ok]
     assert not failed, failed

@@ -20,6 +20,7 @@ from deploy.scenario.invariants import INVARIANTS, Violation, judge
 from deploy.scenario.schema import InvariantSettings, ScenarioSpec
 from deploy.scenario.shrink import shrink
 from deploy.scenario.space import DEFAULT_SPACE, GeneratorSpace, SpaceFileError, load_space
+from tests.deploy.kpi_samples import sample_kpis
 
 SMALL_SPACE = """
 name = "small"
@@ -125,24 +126,6 @@ def test_a_bad_space_is_refused_with_where_and_why(
 # -- (c) invariants ----------------------------------------------------------------------------
 
 
-def _kpis(**changes: Any) -> dict[str, Any]:
-    kpis: dict[str, Any] = {
-        "stops": [{"name": "tp1-north", "stop_error_m": 0.1, "arrival_error_s": 1.0}],
-        "max_overspeed_kmh": 0.0,
-        "max_speed_over_cap_kmh": 0.0,
-        "min_eoa_margin_m": 50.0,
-        "etcs_sb_count": 0,
-        "etcs_eb_count": 0,
-        "vc_eb_count": 0,
-        "vc_interventions": [],
-        "nmpc_ms": {"p50": 1.0, "p99": 4.0, "max": 9.0},
-        "actions": [],
-        "eoa_stops": [{"time_s": 90.0, "distance_to_eoa_m": 6.4}],
-    }
-    kpis.update(changes)
-    return kpis
-
-
 @pytest.fixture
 def small_spec(tmp_path: Path) -> ScenarioSpec:
     return render(_space(tmp_path), draw(_space(tmp_path), 1, 0))
@@ -154,20 +137,26 @@ def small_spec(tmp_path: Path) -> ScenarioSpec:
         ({"max_overspeed_kmh": 0.4}, "overspeed_mrsp"),
         ({"max_speed_over_cap_kmh": 1.2}, "overspeed_cap"),
         ({"min_eoa_margin_m": -0.3}, "eoa_passed"),
-        ({"eoa_stops": [{"time_s": 90.0, "distance_to_eoa_m": 45.2}]}, "eoa_stop_far"),
+        (
+            {"eoa_stops": [{"time_s": 90.0, "distance_to_eoa_m": 45.2, "odometry_interval_m": 4}]},
+            "eoa_stop_far",
+        ),
         ({"etcs_sb_count": 1}, "etcs_intervention"),
         ({"etcs_eb_count": 1}, "etcs_intervention"),
         ({"vc_eb_count": 1}, "vc_eb"),
         ({"stops": []}, "stop_missed"),
-        ({"stops": [{"name": "tp1-north", "stop_error_m": -0.7}]}, "stop_missed"),
+        (
+            {"stops": [sample_kpis().stops[0].model_dump() | {"stop_error_m": -0.7}]},
+            "stop_missed",
+        ),
         ({"nmpc_failures": 12, "nmpc_fallback_s": 2.4}, "nmpc_unbounded"),
     ],
 )
 def test_each_invariant_can_fail(
     small_spec: ScenarioSpec, changes: dict[str, Any], invariant: str
 ) -> None:
-    assert judge(small_spec, _kpis()) == []
-    found = judge(small_spec, _kpis(**changes))
+    assert judge(small_spec, sample_kpis()) == []
+    found = judge(small_spec, sample_kpis(**changes))
     assert [v.invariant for v in found] == [invariant]
 
 
@@ -175,21 +164,23 @@ def test_a_crash_and_the_excuses(small_spec: ScenarioSpec) -> None:
     crash = judge(small_spec, None, error="Traceback ...\nRuntimeError: boom\n")
     assert crash == [Violation("crash", "RuntimeError: boom")]
     reported = {"stop": "tp1-north", "reason": "timing_infeasible", "at_s": 45.0}
-    assert judge(small_spec, _kpis(stops=[], journey_reports=[reported])) == []
+    assert judge(small_spec, sample_kpis(stops=[], journey_reports=[reported])) == []
     detail = "journey not stored (422): leg 0 ... minimum running time 80 s"
-    refused = {"action": "send_journey", "accepted": False, "detail": detail}
-    assert judge(small_spec, _kpis(stops=[], actions=[refused])) == []
+    refused = {"action": "send_journey", "at_s": 45.0, "accepted": False, "detail": detail}
+    assert judge(small_spec, sample_kpis(stops=[], actions=[refused])) == []
     # An EB a fault asks for: an ATO-OB failure; the stops after it are excused too.
     asked = small_spec.model_copy(update={"faults": (*small_spec.faults, _ato_failure())})
-    assert judge(asked, _kpis(vc_eb_count=1, stops=[])) == []
+    assert judge(asked, sample_kpis(vc_eb_count=1, stops=[])) == []
     # A few fallback steps are within the bound; a wall-time bound is judged only when set.
-    assert judge(small_spec, _kpis(nmpc_failures=2, nmpc_fallback_s=0.4)) == []
-    assert judge(small_spec, _kpis(nmpc_ms={"p50": 1.0, "p99": 5.0, "max": 25.0})) == []
+    assert judge(small_spec, sample_kpis(nmpc_failures=2, nmpc_fallback_s=0.4)) == []
+    slow = sample_kpis(nmpc_ms={"p50": 1.0, "p99": 5.0, "max": 25.0})
+    assert judge(small_spec, slow) == []
     timed = InvariantSettings(nmpc_max_ms=20.0)
-    found = judge(small_spec, _kpis(nmpc_ms={"max": 25.0}), settings=timed)
+    found = judge(small_spec, slow, settings=timed)
     assert [v.invariant for v in found] == ["nmpc_unbounded"]
     strict = InvariantSettings(max_stop_error_m=0.05, skip=("nmpc_unbounded",))
-    found = judge(small_spec, _kpis(nmpc_ms={"max": 99.0}), settings=strict)
+    slower = sample_kpis(nmpc_ms={"p50": 1.0, "p99": 5.0, "max": 99.0})
+    found = judge(small_spec, slower, settings=strict)
     assert [v.invariant for v in found] == ["stop_missed"]
     assert set(INVARIANTS) >= {"crash", "stop_missed"}
 

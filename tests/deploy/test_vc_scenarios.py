@@ -21,10 +21,12 @@ def test_every_catalogue_scenario_has_its_file() -> None:
 def test_vc_scenario_ends_in_its_expected_class(item: object) -> None:
     key, expected = item.key, item.expected.value  # type: ignore[attr-defined]
     kpis = run_scenario(load_scenario(f"vc-{key}"), RunOptions(fast=True)).kpis
-    assert kpis["passed"], kpis["expectations"]
-    assert kpis["vc_outcome"] == expected == kpis["vc_expected_outcome"]
-    assert kpis["system_decay"] == (expected in {"eb_then_decay", "decay_at_standstill"})
+    assert kpis.passed, kpis.expectations
+    assert kpis.vc_outcome == expected == kpis.vc_expected_outcome
+    assert kpis.system_decay == (expected in {"eb_then_decay", "decay_at_standstill"})
     if expected in BRAKING:
-        (intervention,) = kpis["vc_interventions"][:1]
-        assert 0.0 <= intervention["hazard_to_eb_command_ms"] <= intervention["total_to_full_eb_ms"]
-        assert intervention["total_to_full_eb_ms"] <= 1000.0
+        (intervention,) = kpis.vc_interventions[:1]
+        command_ms, full_ms = intervention.hazard_to_eb_command_ms, intervention.total_to_full_eb_ms
+        assert command_ms is not None
+        assert full_ms is not None
+        assert 0.0 <= command_ms <= full_ms <= 1000.0
