@@ -18,7 +18,11 @@ Modules, each citing the DOMAIN.md section it follows:
 - :mod:`~onboard.etcs.balises`: balise groups read from the track database or the reader (§1.7);
 - :mod:`~onboard.etcs.linking`: linked groups' expectation windows and Q_LINKREACTION (§1.6 [17]);
 - :mod:`~onboard.etcs.localisation`: the odometer's position, the interval, the LRBG;
-- :mod:`~onboard.etcs.onboard`: :class:`EtcsOnboard`, which ties them together, and
+- :mod:`~onboard.etcs.onboard`: :class:`EtcsOnboard`, which ties them together through its
+  parts: :mod:`~onboard.etcs.authority` (the MA in force and the track description),
+  :mod:`~onboard.etcs.mode_control` (the mode, the level, the transitions),
+  :mod:`~onboard.etcs.mode_supervision` (the supervision by mode, the commands latched) and
+  :mod:`~onboard.etcs.balise_intake` (the groups read, the linking reactions); and
   :mod:`~onboard.etcs.output`: :class:`EtcsOutput`, what each cycle gives.
 
 No Zenoh, no threads, no wall clock: every call takes ``now_s``. The errors are listed in one
@@ -41,6 +45,7 @@ from onboard.etcs._exceptions import (
     TrainDataError,
     TransitionRefusedError,
 )
+from onboard.etcs._motion import MotionSupervisor
 from onboard.etcs.balises import BaliseGroupReading, TelegramHeader, read_balise_group
 from onboard.etcs.braking import (
     BrakingCurve,
@@ -129,6 +134,7 @@ __all__ = [
     "ModeCondition",
     "ModeTransition",
     "Monitoring",
+    "MotionSupervisor",
     "MovementAuthority",
     "MovementAuthorityError",
     "NationalValues",

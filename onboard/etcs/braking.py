@@ -191,6 +191,23 @@ class BrakingCurve:
         k = bisect.bisect_right(self._squares, square) - 1
         return self._bands_m[k] + (square - self._squares[k]) / (2.0 * self._decelerations[k])
 
+    def distance_function(self) -> Callable[[float], float]:
+        """:meth:`distance_m` with the curve's bands bound once, for a bisection's many calls:
+        the same arithmetic, operation for operation."""
+        squares, bands, decelerations = self._squares, self._bands_m, self._decelerations
+        first_square = squares[0]
+        beyond_twice = 2.0 * self._beyond_mps2
+        right = bisect.bisect_right
+
+        def distance_m(speed_mps: float) -> float:
+            square = speed_mps * speed_mps
+            if square < first_square:
+                return -(first_square - square) / beyond_twice
+            k = right(squares, square) - 1
+            return bands[k] + (square - squares[k]) / (2.0 * decelerations[k])
+
+        return distance_m
+
 
 @dataclass(frozen=True, kw_only=True)
 class BrakingTimes:
@@ -436,19 +453,7 @@ class TargetLimits:
         built-ins choose. A test checks it against :meth:`_limit_m`.
         """
         t = self.times
-        curve = self.curve
-        squares, bands, decelerations = curve._squares, curve._bands_m, curve._decelerations
-        first_square = squares[0]
-        beyond_twice = 2.0 * curve._beyond_mps2
-        right = bisect.bisect_right
-
-        def curve_distance_m(speed_mps: float) -> float:  # BrakingCurve.distance_m
-            square = speed_mps * speed_mps
-            if square < first_square:
-                return -(first_square - square) / beyond_twice
-            k = right(squares, square) - 1
-            return bands[k] + (square - squares[k]) / (2.0 * decelerations[k])
-
+        curve_distance_m = self.curve.distance_function()
         if not self.target.ebd_based:
             t_bs1 = t.t_bs1_s
 
@@ -456,32 +461,10 @@ class TargetLimits:
                 return curve_distance_m(v) + v * t_bs1
 
         else:
-            v_target = self.target.speed_mps
-            a_est1 = 0.0 if acceleration_mps2 < 0.0 else acceleration_mps2
-            a_est2 = self._a_est2_max if self._a_est2_max < a_est1 else a_est1
-            t_traction, t_berem, t_bs2 = t.t_traction_s, t.t_berem_s, t.t_bs2_s
-            v_delta1 = a_est1 * t_traction
-            v_delta2 = a_est2 * t_berem
-            half_delta1, half_delta2 = v_delta1 / 2.0, v_delta2 / 2.0
-            compensated = self._accuracy_compensated
-
-            def emergency_m(v: float) -> float:  # _emergency_intervention_m
-                if not compensated:
-                    v_delta0 = 0.0
-                elif v <= _URA_FROM_MPS:
-                    v_delta0 = _URA_MIN_MPS
-                else:
-                    ura = _URA_MIN_MPS + _URA_SLOPE * (v - _URA_FROM_MPS)
-                    v_delta0 = _URA_MAX_MPS if ura > _URA_MAX_MPS else ura
-                fastest = v + v_delta0 + v_delta1
-                fastest = v_target if v_target > fastest else fastest
-                traction = v + v_delta0 + half_delta1
-                traction = v_target if v_target > traction else traction
-                d_bec = traction * t_traction + (fastest + half_delta2) * t_berem
-                return curve_distance_m(fastest + v_delta2) + d_bec
-
+            emergency_m = self._emergency_function(curve_distance_m, acceleration_mps2)
             if limit is Limit.EBI:
                 return emergency_m
+            t_bs2 = t.t_bs2_s
 
             def service_m(v: float) -> float:
                 return emergency_m(v) + v * t_bs2
@@ -496,6 +479,39 @@ class TargetLimits:
             return lambda v: service_m(v) + v * t_driver
         t_indication = t.t_indication_s
         return lambda v: service_m(v) + v * t_driver + v * t_indication
+
+    def _emergency_function(
+        self, curve_distance_m: Callable[[float], float], acceleration_mps2: float
+    ) -> Callable[[float], float]:
+        """``v ↦ _emergency_intervention_m(v, acceleration_mps2)`` for :meth:`_limit_function`,
+        on the curve's ``curve_distance_m``: V_ura inlined, what does not depend on the speed
+        worked out once."""
+        t = self.times
+        v_target = self.target.speed_mps
+        a_est1 = 0.0 if acceleration_mps2 < 0.0 else acceleration_mps2
+        a_est2 = self._a_est2_max if self._a_est2_max < a_est1 else a_est1
+        t_traction, t_berem = t.t_traction_s, t.t_berem_s
+        v_delta1 = a_est1 * t_traction
+        v_delta2 = a_est2 * t_berem
+        half_delta1, half_delta2 = v_delta1 / 2.0, v_delta2 / 2.0
+        compensated = self._accuracy_compensated
+
+        def emergency_m(v: float) -> float:  # _emergency_intervention_m
+            if not compensated:
+                v_delta0 = 0.0
+            elif v <= _URA_FROM_MPS:
+                v_delta0 = _URA_MIN_MPS
+            else:
+                ura = _URA_MIN_MPS + _URA_SLOPE * (v - _URA_FROM_MPS)
+                v_delta0 = _URA_MAX_MPS if ura > _URA_MAX_MPS else ura
+            fastest = v + v_delta0 + v_delta1
+            fastest = v_target if v_target > fastest else fastest
+            traction = v + v_delta0 + half_delta1
+            traction = v_target if v_target > traction else traction
+            d_bec = traction * t_traction + (fastest + half_delta2) * t_berem
+            return curve_distance_m(fastest + v_delta2) + d_bec
+
+        return emergency_m
 
     def _check_limit(self, limit: Limit) -> None:
         if limit not in self.limits:

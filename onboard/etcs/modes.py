@@ -47,6 +47,8 @@ from protocol.messages import EtcsMode
 __all__ = [
     "MODELLED_MODES",
     "MODE_TRANSITIONS",
+    "STANDSTILL_MODES",
+    "SUPERVISED_MODES",
     "ModeChange",
     "ModeCondition",
     "ModeTransition",
@@ -65,6 +67,10 @@ MODELLED_MODES = frozenset(
         EtcsMode.IS,
     }
 )
+SUPERVISED_MODES = frozenset({EtcsMode.FS, EtcsMode.OS, EtcsMode.AD})
+"""The modes that supervise speed and distance against an MA, and take linking reactions."""
+STANDSTILL_MODES = frozenset({EtcsMode.SB, EtcsMode.PT})
+"""The modes that supervise standstill (roll-away protection) and start a mission."""
 _BOTH_LEVELS = frozenset(EtcsLevel)
 
 
@@ -117,7 +123,7 @@ def _modes(*modes: EtcsMode) -> frozenset[EtcsMode]:
     return frozenset(modes)
 
 
-_SUPERVISED = _modes(EtcsMode.FS, EtcsMode.OS, EtcsMode.AD)
+_SUPERVISED = SUPERVISED_MODES
 _C = ModeCondition
 
 MODE_TRANSITIONS: tuple[ModeTransition, ...] = (

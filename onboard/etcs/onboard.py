@@ -21,6 +21,13 @@ Then it
 5. supervises speed and distance for the mode and latches the commands
    (:mod:`onboard.etcs.supervision`), and returns an :class:`EtcsOutput`.
 
+:class:`EtcsOnboard` checks the inputs and the time and runs these steps; its parts hold the
+state and do the work: :class:`~onboard.etcs.localisation.Localisation` (where the train is),
+:class:`~onboard.etcs.authority.AuthorityKeeper` (the MA and track description),
+:class:`~onboard.etcs.mode_control.ModeControl` (the mode and the level),
+:class:`~onboard.etcs.mode_supervision.ModeSupervision` (the supervision, the commands, the
+output) and :class:`~onboard.etcs.balise_intake.BaliseIntake` (the groups read, the linking).
+
 Supervision by mode:
 
 - SB, PT: standstill supervision; moving more than D_NVROLL commands the EB (roll-away
@@ -49,30 +56,25 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from onboard.etcs._exceptions import EtcsInputError, TransitionRefusedError
-from onboard.etcs._motion import MotionSupervisor
-from onboard.etcs.balises import (
-    BaliseGroupReading,
-    LevelTransition,
-    LinkedGroup,
-    balise_groups_passed,
-    read_balise_group,
-)
+from onboard.etcs._exceptions import EtcsInputError
+from onboard.etcs.authority import AuthorityKeeper
+from onboard.etcs.balise_intake import BaliseIntake
+from onboard.etcs.balises import BaliseGroupReading
 from onboard.etcs.braking import BrakingModel
-from onboard.etcs.linking import LinkingEvent, LinkingFault
+from onboard.etcs.linking import LinkingEvent
 from onboard.etcs.localisation import Localisation, OdometerPoint
-from onboard.etcs.modes import ModeChange, ModeCondition, ModeTransition, select_transition
+from onboard.etcs.mode_control import ModeControl
+from onboard.etcs.mode_supervision import STANDSTILL_SPEED_MPS, ModeSupervision
+from onboard.etcs.modes import ModeChange
 from onboard.etcs.movement_authority import (
     AuthorityInForce,
     EtcsLevel,
     MaChange,
     MovementAuthority,
-    TrackDescription,
 )
 from onboard.etcs.odometer import Odometer, OdometerParameters
 from onboard.etcs.odometry import ConfidenceInterval, OdometryAccuracy
 from onboard.etcs.output import EtcsOutput
-from onboard.etcs.supervision import Demand, InterventionLatch, Monitoring, SupervisionResult
 from onboard.etcs.values import (
     FIXED_VALUES,
     NATIONAL_DEFAULTS,
@@ -82,16 +84,10 @@ from onboard.etcs.values import (
     TrainData,
 )
 from onboard.plant.readings import BaliseDetection, WheelReading
-from protocol.messages import EtcsMode, SupervisionStatus
+from protocol.messages import EtcsMode
 from trackdb import BaliseGroup, TrackMap
-from trackdb.schema import LinkReaction
 
 __all__ = ["STANDSTILL_SPEED_MPS", "EtcsOnboard", "EtcsOutput"]
-
-STANDSTILL_SPEED_MPS = 0.05
-"""At or below this speed [m/s] the train is at standstill."""
-_SUPERVISED_MODES = frozenset({EtcsMode.FS, EtcsMode.OS, EtcsMode.AD})
-_STANDSTILL_MODES = frozenset({EtcsMode.SB, EtcsMode.PT})
 
 
 class EtcsOnboard:
@@ -144,15 +140,8 @@ class EtcsOnboard:
         self.track_map = track_map
         self.braking = BrakingModel(train, national=national, fixed=fixed)
         self.train, self.national, self.fixed = train, national, fixed
-        self.level = EtcsLevel(track_map.line.etcs_level) if level is None else level
         self.read_balise_groups = odometer is None and read_balise_groups is not False
         self.odometer = None if odometer is None else Odometer(odometer, start_s=start_s)
-        self.mode_changes: list[ModeChange] = []
-        self.linking_events: list[LinkingEvent] = []
-        self.last_balise_reading: BaliseGroupReading | None = None
-        self.service_brake_interventions = 0
-        self.emergency_brake_interventions = 0
-        self._mode = EtcsMode.SB
         self._time_s = start_s
         if odometry is None:
             odometry = OdometryAccuracy() if odometer is None else odometer.accuracy()
@@ -163,35 +152,41 @@ class EtcsOnboard:
             location_accuracy_m=national.q_nvlocacc_m,
             odometer=self.odometer,
         )
-        self._linking_brake = False
-        self._unreported: list[LinkingEvent] = []
-        self._readings = 0
-        self._authority: AuthorityInForce | None = None
-        self._track_description = TrackDescription()
-        self._level_transitions: list[LevelTransition] = []
-        self._latch = InterventionLatch(
-            release_at_standstill=national.emergency_brake_release_at_standstill
+        self._authority = AuthorityKeeper()
+        self._supervision = ModeSupervision(
+            track_map, self.braking, self._where, self._authority, roll_reference_m=position_m
         )
-        self._events: set[ModeCondition] = set()
-        self._isolated = False
-        self._automatic_driving_requested = False
-        self._roll_reference_m = position_m
-        self._staff_responsible_start_m = position_m
-        self._motion = MotionSupervisor(track_map, self.braking)
-        self._result: SupervisionResult = self._idle_result(0.0)
-        self.output = self._output(self._result)
+        self._modes = ModeControl(
+            EtcsLevel(track_map.line.etcs_level) if level is None else level,
+            self._where,
+            self._authority,
+            self._supervision,
+            start_m=position_m,
+        )
+        self._balises = BaliseIntake(
+            self._where, self._authority, self._modes, self._supervision, national
+        )
+        # The records the callers read, the very lists the parts append to.
+        self.mode_changes: list[ModeChange] = self._modes.changes
+        self.linking_events: list[LinkingEvent] = self._balises.linking_events
+        self.output = self._output()
 
     # -- state ----------------------------------------------------------------------------------
 
     @property
     def mode(self) -> EtcsMode:
         """The current mode."""
-        return self._mode
+        return self._modes.mode
+
+    @property
+    def level(self) -> EtcsLevel:
+        """The current level."""
+        return self._modes.level
 
     @property
     def movement_authority(self) -> AuthorityInForce | None:
         """The MA in force, in track locations [m]."""
-        return self._authority
+        return self._authority.in_force
 
     @property
     def odometry(self) -> ConfidenceInterval:
@@ -199,18 +194,29 @@ class EtcsOnboard:
         return self._where.interval
 
     @property
-    def _interval(self) -> ConfidenceInterval:
-        return self._where.interval
+    def last_balise_reading(self) -> BaliseGroupReading | None:
+        """The last group read; its ``header`` is the telegram header the VC forwards."""
+        return self._balises.last_reading
+
+    @property
+    def service_brake_interventions(self) -> int:
+        """Rising edges of the service-brake command so far."""
+        return self._supervision.service_brake_interventions
+
+    @property
+    def emergency_brake_interventions(self) -> int:
+        """Rising edges of the emergency-brake command so far."""
+        return self._supervision.emergency_brake_interventions
 
     def intervention_speed_mps(self) -> float:
         """The speed at which the last cycle's supervision would intervene [m/s]; inf when
         nothing is supervised (IS). Computed on demand: a status value."""
-        return self._result.intervention_speed_mps()
+        return self._supervision.result.intervention_speed_mps()
 
     @property
     def standstill(self) -> bool:
         """Whether the last speed given was a standstill."""
-        return self._where.speed_mps <= STANDSTILL_SPEED_MPS
+        return self._supervision.standstill
 
     # -- the cycle ------------------------------------------------------------------------------
 
@@ -232,17 +238,11 @@ class EtcsOnboard:
         """
         self._refuse_on_sensors("step")
         self._check_time(now_s)
-        if not (math.isfinite(position_m) and math.isfinite(acceleration_mps2)):
-            raise EtcsInputError("position and acceleration must be finite")
-        if not (math.isfinite(speed_mps) and speed_mps >= 0.0):
-            raise EtcsInputError(f"speed {speed_mps} m/s must be finite and ≥ 0")
+        _check_motion(position_m, speed_mps, acceleration_mps2)
         previous_m = self._where.odometer_m
         self._where.move(position_m, speed_mps, acceleration_mps2)
         if self.read_balise_groups:
-            for group, odometer_m in balise_groups_passed(
-                self.track_map, previous_m, self._where.odometer_m
-            ):
-                self._read(group, now_s, time_s=now_s, at=OdometerPoint(odometer_m=odometer_m))
+            self._balises.read_passed(previous_m, now_s)
         return self._cycle(now_s)
 
     def step_on_sensors(
@@ -269,48 +269,36 @@ class EtcsOnboard:
         if odometer is None:
             raise EtcsInputError("step_on_sensors needs an onboard built with an odometer")
         self._check_time(now_s)
-        detections = sorted(balises, key=lambda detection: detection.time_s)
-        if not all(math.isfinite(detection.time_s) for detection in detections):
-            raise EtcsInputError("balise detection times must be finite")
+        detections = _in_time_order(balises)
         self._where.sense(odometer, wheels)
-        for detection in detections:
-            self._read(
-                detection.group,
-                now_s,
-                time_s=detection.time_s,
-                at=self._where.detection_position(odometer, detection.time_s),
-                reader_error_m=odometer.parameters.balise_location_error_m,
-            )
+        self._balises.read_detected(odometer, detections, now_s)
         return self._cycle(now_s)
 
     def _cycle(self, now_s: float) -> EtcsOutput:
         """The cycle once the odometer has moved and the groups are read."""
+        modes = self._modes
         self._where.update()
-        if self._mode is not EtcsMode.IS:
-            for group, fault in self._where.missed_groups():
-                self._linking_fault(group, fault, now_s)
-        self._apply_level_transitions()
-        if self._authority is not None:
-            self._authority.update(
-                now_s,
-                min_safe_front_m=self._interval.min_safe_front_m,
-                max_safe_front_m=self._interval.max_safe_front_m,
-            )
-        self._evaluate_modes(now_s)
-        self._events.clear()
-        result = self._supervise()
-        self._evaluate_modes(now_s)
-        self.output = self._output(result)
+        if modes.mode is not EtcsMode.IS:
+            self._balises.check_windows(now_s)
+        modes.apply_level_transitions()
+        self._authority.update(now_s, self._where.interval)
+        modes.settle(now_s)
+        self._supervision.supervise(modes.mode)
+        modes.evaluate(now_s)
+        self.output = self._output()
         return self.output
+
+    def _output(self) -> EtcsOutput:
+        modes = self._modes
+        linking_events = self._balises.take_unreported()
+        return self._supervision.output(self._time_s, modes.mode, modes.level, linking_events)
 
     # -- requests -------------------------------------------------------------------------------
 
     def start_of_mission(self, now_s: float) -> None:
         """Start of mission in SB or PT: FS or OS with an MA on board, SR otherwise."""
         self._check_time(now_s)
-        if self._mode not in _STANDSTILL_MODES:
-            raise TransitionRefusedError(f"start of mission is for SB and PT, not {self._mode}")
-        self._event(ModeCondition.START_IN_STAFF_RESPONSIBLE, now_s)
+        self._modes.start_of_mission(now_s)
 
     def receive_movement_authority(
         self,
@@ -325,22 +313,17 @@ class EtcsOnboard:
         to the SvL. Rejected in TR and IS.
         """
         self._check_time(now_s)
-        if track_description_m is not None and not (
-            math.isfinite(track_description_m) and track_description_m > 0.0
-        ):
-            raise EtcsInputError("a track description needs a positive finite length")
-        if self._mode in (EtcsMode.TR, EtcsMode.IS):
+        if track_description_m is not None:
+            _check_track_description(track_description_m)
+        if self._modes.mode in (EtcsMode.TR, EtcsMode.IS):
             return MaChange.REJECTED
-        reference_m = self._where.locate(authority.reference_m)
-        change = self._accept(authority, now_s, reference_location_m=reference_m)
-        if track_description_m is None:
-            track_description_m = authority.end_of_authority_m + max(
-                authority.danger_point_m, authority.overlap_m
-            )
-        end_m = reference_m + track_description_m
-        self._track_description.receive_static_speed_profile(reference_m, end_m)
-        self._track_description.receive_gradient(reference_m, end_m)
-        self._evaluate_modes(now_s)
+        change = self._authority.accept_with_track_description(
+            authority,
+            now_s,
+            reference_location_m=self._where.locate(authority.reference_m),
+            track_description_m=track_description_m,
+        )
+        self._modes.evaluate(now_s)
         return change
 
     def pass_balise_group(
@@ -349,55 +332,46 @@ class EtcsOnboard:
         """The front end passed ``group`` when the odometer read ``position_m`` (chainage)."""
         self._refuse_on_sensors("pass_balise_group")
         self._check_time(now_s)
-        odometer_m = (
-            self._where.odometer_m if position_m is None else self._where.unwrap(position_m)
+        where = self._where
+        odometer_m = where.odometer_m if position_m is None else where.unwrap(position_m)
+        reading = self._balises.read(
+            group, now_s, time_s=now_s, at=OdometerPoint(odometer_m=odometer_m)
         )
-        reading = self._read(group, now_s, time_s=now_s, at=OdometerPoint(odometer_m=odometer_m))
-        self._where.update()
-        self._evaluate_modes(now_s)
-        self._events.clear()
+        where.update()
+        self._modes.settle(now_s)
         return reading
 
     def acknowledge_trip(self, now_s: float) -> None:
         """The trip acknowledged: TR → PT, at standstill only."""
         self._check_time(now_s)
-        if self._mode is not EtcsMode.TR:
-            raise TransitionRefusedError(f"no trip to acknowledge in {self._mode}")
-        if not self.standstill:
-            raise TransitionRefusedError("a trip is acknowledged at standstill only")
-        self._event(ModeCondition.TRIP_ACKNOWLEDGED, now_s)
+        self._modes.acknowledge_trip(now_s, standstill=self.standstill)
 
     @property
     def isolated(self) -> bool:
         """The ETCS-OB's power is cut (by the VC's relay): mode IS."""
-        return self._isolated
+        return self._modes.isolated
 
     def isolate(self, now_s: float) -> None:
         """ETCS isolated (the VC's relay): IS from any mode, commands dropped."""
         self._check_time(now_s)
-        self._isolated = True
-        self._evaluate_modes(now_s)
+        self._modes.isolate(now_s)
 
     def insert(self, now_s: float) -> None:
         """ETCS inserted again: IS → SB."""
         self._check_time(now_s)
-        if not self._isolated:
-            raise TransitionRefusedError("ETCS is not isolated")
-        self._isolated = False
-        self._evaluate_modes(now_s)
+        self._modes.insert(now_s)
 
     def request_automatic_driving(self, engaged: bool, now_s: float) -> None:
         """ATO engaged (FS → AD when the conditions hold) or disengaged (AD → FS)."""
         self._check_time(now_s)
-        self._automatic_driving_requested = engaged
-        self._evaluate_modes(now_s)
+        self._modes.request_automatic_driving(engaged, now_s)
 
     def emergency_stop(self, now_s: float) -> None:
         """An unconditional emergency stop from the RBC: trip in SR, FS, OS and AD."""
         self._check_time(now_s)
-        self._event(ModeCondition.EMERGENCY_STOP, now_s)
+        self._modes.emergency_stop(now_s)
 
-    # -- internals: time, coordinates, events --------------------------------------------------
+    # -- internals: inputs -----------------------------------------------------------------------
 
     def _refuse_on_sensors(self, call: str) -> None:
         if self.odometer is not None:
@@ -408,311 +382,24 @@ class EtcsOnboard:
             raise EtcsInputError(f"time {now_s} s is not finite or before {self._time_s} s")
         self._time_s = now_s
 
-    def _event(self, condition: ModeCondition, now_s: float) -> None:
-        self._events.add(condition)
-        self._evaluate_modes(now_s)
-        self._events.discard(condition)
 
-    # -- internals: balise groups, MA, track description ---------------------------------------
+def _check_motion(position_m: float, speed_mps: float, acceleration_mps2: float) -> None:
+    """Refuse a given motion that is not finite, or runs backwards."""
+    if not (math.isfinite(position_m) and math.isfinite(acceleration_mps2)):
+        raise EtcsInputError("position and acceleration must be finite")
+    if not (math.isfinite(speed_mps) and speed_mps >= 0.0):
+        raise EtcsInputError(f"speed {speed_mps} m/s must be finite and ≥ 0")
 
-    def _read(
-        self,
-        group: BaliseGroup,
-        now_s: float,
-        *,
-        time_s: float,
-        at: OdometerPoint,
-        reader_error_m: float = 0.0,
-    ) -> BaliseGroupReading:
-        """Read ``group`` found at ``time_s`` [s], when the odometer was ``at``; the reader's
-        location error [m] adds to the group's accuracy."""
-        location_m = self._where.locate(group.position_m)
-        link = self._where.linking.announcement(group.id)
-        reading = read_balise_group(
-            group,
-            location_m=location_m,
-            time_s=time_s,
-            linked=link is not None,
-            message_counter=self._readings,
-        )
-        self._readings += 1
-        self.last_balise_reading = reading
-        if self._mode is EtcsMode.IS:
-            return reading
-        accuracy_m = self.national.q_nvlocacc_m if link is None else link.location_accuracy_m
-        faults = self._where.relocate(
-            group.id,
-            location_m,
-            at=at,
-            location_accuracy_m=accuracy_m + reader_error_m,
-            linked_groups=reading.linked_groups,
-        )
-        for linked, fault in faults:
-            self._linking_fault(linked, fault, now_s)
-        if self._mode is EtcsMode.TR:
-            return reading
-        if reading.static_speed_profile_end_m is not None:
-            end_m = reading.static_speed_profile_end_m
-            self._track_description.receive_static_speed_profile(location_m, end_m)
-        if reading.gradient_end_m is not None:
-            self._track_description.receive_gradient(location_m, reading.gradient_end_m)
-        if reading.level_transition is not None:
-            self._level_transitions.append(reading.level_transition)
-        if reading.movement_authority is not None and self.level is EtcsLevel.LEVEL_1:
-            self._accept(reading.movement_authority, now_s, reference_location_m=location_m)
-        result = self._result
-        if (
-            self._mode in _SUPERVISED_MODES
-            and self._authority is not None
-            and result.monitoring is Monitoring.RELEASE_SPEED
-            and location_m >= self._authority_locations()[0]
-        ):
-            self._events.add(ModeCondition.BALISE_GROUP_AT_END_OF_AUTHORITY)
-        return reading
 
-    def _linking_fault(self, group: LinkedGroup, fault: LinkingFault, now_s: float) -> None:
-        """A linked group not read where expected: its reaction in FS, OS and AD."""
-        applied = self._mode in _SUPERVISED_MODES
-        event = LinkingEvent(
-            time_s=now_s,
-            balise_group_id=group.balise_group_id,
-            expected_location_m=group.location_m,
-            location_accuracy_m=group.location_accuracy_m,
-            fault=fault,
-            reaction=group.reaction,
-            applied=applied,
-        )
-        self.linking_events.append(event)
-        self._unreported.append(event)
-        if not applied:
-            return
-        if group.reaction is LinkReaction.TRAIN_TRIP:
-            self._events.add(ModeCondition.LINKING_REACTION)
-        elif group.reaction is LinkReaction.SERVICE_BRAKE:
-            self._linking_brake = True
+def _in_time_order(balises: Sequence[BaliseDetection]) -> list[BaliseDetection]:
+    """The detections sorted by time; refused if a time is not finite."""
+    detections = sorted(balises, key=lambda detection: detection.time_s)
+    if not all(math.isfinite(detection.time_s) for detection in detections):
+        raise EtcsInputError("balise detection times must be finite")
+    return detections
 
-    def _accept(
-        self, authority: MovementAuthority, now_s: float, *, reference_location_m: float
-    ) -> MaChange:
-        new = AuthorityInForce.resolve(
-            authority, reference_location_m=reference_location_m, now_s=now_s
-        )
-        old = self._authority
-        self._authority = new
-        if old is None:
-            return MaChange.NEW
-        if new.end_of_authority_m > old.end_of_authority_m:
-            return MaChange.EXTENDED
-        if new.end_of_authority_m < old.end_of_authority_m:
-            return MaChange.SHORTENED
-        return MaChange.UNCHANGED
 
-    def _authority_locations(self) -> tuple[float, float]:
-        """(EoA, SvL) [m], held at the end of the track description (§3.7)."""
-        if self._authority is None:  # pragma: no cover - callers check
-            raise EtcsInputError("no movement authority")
-        return self._track_description.held_authority_m(self._authority)
-
-    def _apply_level_transitions(self) -> None:
-        front_m = self._interval.estimated_front_m
-        due = [t for t in self._level_transitions if front_m >= t.location_m]
-        for transition in due:
-            self.level = transition.level
-            self._level_transitions.remove(transition)
-
-    # -- internals: modes -----------------------------------------------------------------------
-
-    def _conditions(self) -> set[ModeCondition]:
-        conditions = set(self._events)
-        conditions.add(ModeCondition.ISOLATED if self._isolated else ModeCondition.INSERTED)
-        front = self._interval
-        if self._authority is not None:
-            eoa_m, _ = self._authority_locations()
-            if front.min_safe_front_m > eoa_m:
-                conditions.add(ModeCondition.END_OF_AUTHORITY_PASSED)
-            span = self._track_description.span_m
-            if span is not None and span[0] <= front.estimated_front_m:
-                if self._in_on_sight_area():
-                    conditions.add(ModeCondition.ON_SIGHT_AUTHORITY)
-                else:
-                    conditions.add(ModeCondition.AUTHORITY_AND_TRACK_DESCRIPTION)
-        sr_limit_m = self._staff_responsible_start_m + self.national.d_nvstff_m
-        if self._mode is EtcsMode.SR and front.min_safe_front_m > sr_limit_m:
-            conditions.add(ModeCondition.STAFF_RESPONSIBLE_DISTANCE_PASSED)
-        commands = self._latch.commands
-        braking = commands.service_brake or commands.emergency_brake
-        if braking:
-            conditions.add(ModeCondition.BRAKE_COMMANDED)
-        if not self._automatic_driving_requested:
-            conditions.add(ModeCondition.AUTOMATIC_DRIVING_DISENGAGED)
-        elif not braking and self._track_description_under_train():
-            conditions.add(ModeCondition.AUTOMATIC_DRIVING_ENGAGED)
-        return conditions
-
-    def _in_on_sight_area(self) -> bool:
-        authority = self._authority
-        if authority is None or authority.authority.on_sight is None:
-            return False
-        area = authority.authority.on_sight
-        start_m = authority.reference_location_m + area.start_m
-        end_m = authority.reference_location_m + area.end_m
-        # The area holds from the front end's entry until the rear end has left it.
-        return start_m <= self._interval.estimated_front_m < end_m + self.train.length_m
-
-    def _track_description_under_train(self) -> bool:
-        span = self._track_description.span_m
-        rear_m = self._interval.min_safe_front_m - self.train.length_m
-        return span is not None and span[0] <= rear_m
-
-    def _evaluate_modes(self, now_s: float) -> None:
-        for _ in range(4):
-            transition = select_transition(self._mode, self._conditions(), self.level)
-            if transition is None:
-                return
-            self._enter(transition, now_s)
-
-    def _enter(self, transition: ModeTransition, now_s: float) -> None:
-        target = transition.target
-        self.mode_changes.append(
-            ModeChange(time_s=now_s, source=self._mode, target=target, transition=transition)
-        )
-        self._mode = target
-        self._events.discard(transition.condition)
-        front_m = self._interval.estimated_front_m
-        if target in (EtcsMode.TR, EtcsMode.IS):
-            self._authority = None
-            self._track_description.clear()
-            self._automatic_driving_requested = False
-            self._linking_brake = False
-            self._events.clear()
-        if target is EtcsMode.IS:
-            self._latch.reset()
-        if target in _STANDSTILL_MODES:
-            self._roll_reference_m = front_m
-        if target is EtcsMode.SR:
-            self._staff_responsible_start_m = front_m
-        if transition.condition is ModeCondition.BRAKE_COMMANDED:
-            self._automatic_driving_requested = False
-
-    # -- internals: supervision -----------------------------------------------------------------
-
-    def _idle_result(self, permitted_mps: float) -> SupervisionResult:
-        return SupervisionResult(
-            demand=Demand(),
-            monitoring=Monitoring.CEILING_SPEED,
-            permitted_speed_mps=permitted_mps,
-            ceiling_speed_mps=permitted_mps,
-            target=None,
-            target_distance_m=None,
-            release_speed_mps=None,
-            ceiling_intervention_mps=math.inf if self._mode is EtcsMode.IS else permitted_mps,
-        )
-
-    def _supervise(self) -> SupervisionResult:
-        mode = self._mode
-        if mode is EtcsMode.IS:
-            self._latch.reset()
-            result = self._idle_result(self._motion.ceiling_mps(self._interval, math.inf))
-        elif mode in _SUPERVISED_MODES or mode is EtcsMode.SR:
-            result = self._supervise_motion(mode)
-            self._latch_commands(self._with_linking_brake(result.demand), forced=False)
-        else:
-            forced = mode is EtcsMode.TR
-            if mode in _STANDSTILL_MODES:
-                if self.standstill:
-                    self._roll_reference_m = self._interval.estimated_front_m
-                moved_m = abs(self._interval.estimated_front_m - self._roll_reference_m)
-                forced = moved_m > self.national.d_nvroll_m
-            result = self._idle_result(0.0)
-            self._latch_commands(result.demand, forced=forced)
-        self._result = result
-        return result
-
-    def _with_linking_brake(self, demand: Demand) -> Demand:
-        """The linking reaction's service brake (the EB without one), held to standstill."""
-        if self._linking_brake and self.standstill:
-            self._linking_brake = False
-        if not self._linking_brake:
-            return demand
-        service = self.train.service_brake_available
-        return demand.combined(
-            Demand(
-                status=SupervisionStatus.INTERVENTION,
-                service_brake=service,
-                emergency_brake=not service,
-            )
-        )
-
-    def _latch_commands(self, demand: Demand, *, forced: bool) -> None:
-        before = self._latch.commands
-        after = self._latch.update(
-            demand, standstill=self.standstill, forced_emergency_brake=forced
-        )
-        self.service_brake_interventions += after.service_brake and not before.service_brake
-        self.emergency_brake_interventions += after.emergency_brake and not before.emergency_brake
-
-    def _mode_limit_mps(self, mode: EtcsMode) -> float:
-        limit_mps = self.train.max_speed_mps
-        if mode is EtcsMode.SR:
-            limit_mps = min(limit_mps, self.national.v_nvstff_mps)
-        if mode is EtcsMode.OS and self._authority is not None:
-            area = self._authority.authority.on_sight
-            speed_mps = None if area is None else area.speed_mps
-            limit_mps = min(limit_mps, speed_mps or self.national.v_nvonsight_mps)
-        return limit_mps
-
-    def _supervise_motion(self, mode: EtcsMode) -> SupervisionResult:
-        authority_m = release_mps = None
-        if mode in _SUPERVISED_MODES and self._authority is not None:
-            authority_m = self._authority_locations()
-            release_mps = self._authority.release_speed_mps
-        return self._motion.supervise(
-            interval=self._interval,
-            speed_mps=self._where.speed_mps,
-            acceleration_mps2=self._where.acceleration_mps2,
-            limit_mps=self._mode_limit_mps(mode),
-            authority_m=authority_m,
-            release_speed_mps=release_mps,
-        )
-
-    # -- internals: output ----------------------------------------------------------------------
-
-    def _output(self, result: SupervisionResult) -> EtcsOutput:
-        interval = self._interval
-        commands = self._latch.commands
-        eoa_chainage_m = eoa_distance_m = svl_distance_m = None
-        if self._authority is not None:
-            eoa_m, svl_m = self._authority_locations()
-            eoa_chainage_m = self.track_map.normalise(eoa_m)
-            eoa_distance_m = eoa_m - interval.estimated_front_m
-            svl_distance_m = svl_m - interval.max_safe_front_m
-        target = result.target
-        return EtcsOutput(
-            time_s=self._time_s,
-            mode=self._mode,
-            level=self.level,
-            supervision_status=self._latch.status(result.demand.status),
-            monitoring=result.monitoring,
-            permitted_speed_mps=result.permitted_speed_mps,
-            ceiling_speed_mps=result.ceiling_speed_mps,
-            target_speed_mps=None if target is None else target.speed_mps,
-            target_distance_m=result.target_distance_m,
-            release_speed_mps=result.release_speed_mps,
-            end_of_authority_m=eoa_chainage_m,
-            end_of_authority_distance_m=eoa_distance_m,
-            supervised_location_distance_m=svl_distance_m,
-            traction_cut=commands.traction_cut,
-            service_brake=commands.service_brake,
-            emergency_brake=commands.emergency_brake,
-            estimated_front_m=self.track_map.normalise(interval.estimated_front_m),
-            odometry=interval,
-            lrbg_id=self._where.lrbg_id,
-            estimated_speed_mps=self._where.speed_mps,
-            estimated_acceleration_mps2=self._where.acceleration_mps2,
-            wheel_adhesion=self._where.adhesion,
-            linking_events=self._take_unreported(),
-        )
-
-    def _take_unreported(self) -> tuple[LinkingEvent, ...]:
-        events, self._unreported = tuple(self._unreported), []
-        return events
+def _check_track_description(track_description_m: float) -> None:
+    """Refuse a track description's length [m] that is not positive and finite."""
+    if not (math.isfinite(track_description_m) and track_description_m > 0.0):
+        raise EtcsInputError("a track description needs a positive finite length")

@@ -31,6 +31,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from functools import cached_property
+from typing import NamedTuple
 
 from onboard.etcs.braking import (
     Limit,
@@ -236,25 +237,35 @@ class SupervisionResult:
         return speed
 
 
-def supervise(
+class _TargetsMonitored(NamedTuple):
+    """What TSM of every target gives :func:`supervise`."""
+
+    demand: Demand
+    """The ceiling's demand combined with every target's."""
+    permitted_mps: float
+    """The lowest permitted speed [m/s], the ceiling's included."""
+    intervention_targets: list[tuple[TargetLimits, float, float]]
+    """Each target with its distance [m] and the acceleration [m/s²]."""
+    shown: tuple[float, float, Target] | None
+    """The most restrictive target: its permitted speed [m/s], its distance [m], itself."""
+    in_target_speed: bool
+    """Whether a target's TSM reached Indication or beyond."""
+
+
+def _monitor_targets(
+    targets: Sequence[TargetLimits],
     *,
     speed_mps: float,
     interval: ConfidenceInterval,
-    ceiling_speed_mps: float,
-    targets: Sequence[TargetLimits] = (),
-    release: ReleaseSpeedArea | None = None,
-    acceleration_mps2: float = 0.0,
-    fixed: FixedValues = FIXED_VALUES,
-    service_brake_available: bool = True,
-    service_brake_in_target_speed_monitoring: bool = True,
-) -> SupervisionResult:
-    """Run CSM, TSM for every target, and RSM when the train is in the release-speed area."""
-    demand = ceiling_speed_monitoring(
-        speed_mps, ceiling_speed_mps, fixed=fixed, service_brake_available=service_brake_available
-    )
-    in_release = release is not None and release.contains(interval)
-    permitted_mps = ceiling_speed_mps
-    intervention_mps = ceiling_speed_mps + dv_ebi_mps(ceiling_speed_mps, fixed)
+    demand: Demand,
+    permitted_mps: float,
+    in_release: bool,
+    acceleration_mps2: float,
+    service_brake_permitted: bool,
+) -> _TargetsMonitored:
+    """TSM of every target at the estimated speed [m/s] and acceleration [m/s²], on top of the
+    ceiling's ``demand`` and permitted speed [m/s]; in the release-speed area only the MRSP's
+    decreases (RSM supervises the EoA and the SvL)."""
     intervention_targets: list[tuple[TargetLimits, float, float]] = []
     shown: tuple[float, float, Target] | None = None
     in_target_speed = False
@@ -276,11 +287,43 @@ def supervise(
             speed_mps,
             interval,
             acceleration_mps2=acceleration_mps2,
-            service_brake_permitted=service_brake_available
-            and service_brake_in_target_speed_monitoring,
+            service_brake_permitted=service_brake_permitted,
         )
         in_target_speed |= severity(target_demand.status) >= 1
         demand = demand.combined(target_demand)
+    return _TargetsMonitored(demand, permitted_mps, intervention_targets, shown, in_target_speed)
+
+
+def supervise(
+    *,
+    speed_mps: float,
+    interval: ConfidenceInterval,
+    ceiling_speed_mps: float,
+    targets: Sequence[TargetLimits] = (),
+    release: ReleaseSpeedArea | None = None,
+    acceleration_mps2: float = 0.0,
+    fixed: FixedValues = FIXED_VALUES,
+    service_brake_available: bool = True,
+    service_brake_in_target_speed_monitoring: bool = True,
+) -> SupervisionResult:
+    """Run CSM, TSM for every target, and RSM when the train is in the release-speed area."""
+    demand = ceiling_speed_monitoring(
+        speed_mps, ceiling_speed_mps, fixed=fixed, service_brake_available=service_brake_available
+    )
+    in_release = release is not None and release.contains(interval)
+    intervention_mps = ceiling_speed_mps + dv_ebi_mps(ceiling_speed_mps, fixed)
+    demand, permitted_mps, intervention_targets, shown, in_target_speed = _monitor_targets(
+        targets,
+        speed_mps=speed_mps,
+        interval=interval,
+        demand=demand,
+        permitted_mps=ceiling_speed_mps,
+        in_release=in_release,
+        acceleration_mps2=acceleration_mps2,
+        service_brake_permitted=(
+            service_brake_available and service_brake_in_target_speed_monitoring
+        ),
+    )
     monitoring = Monitoring.TARGET_SPEED if in_target_speed else Monitoring.CEILING_SPEED
     if release is not None and in_release:
         monitoring = Monitoring.RELEASE_SPEED

@@ -4,7 +4,8 @@ and the OBCU's localisation input.
 - :mod:`~onboard.sfa.filter`: the Kalman filter along the track (IMU input; odometer, GPS and
   balise-group measurements).
 - :mod:`~onboard.sfa.reorder` and :mod:`~onboard.sfa.listener`: INPUT_PROTOCOL validated,
-  reordered and fused; OUTPUT_PROTOCOL out; ACKs tracked.
+  reordered and fused; OUTPUT_PROTOCOL out; ACKs tracked. :mod:`~onboard.sfa.time_base`: the
+  sensor packets' epochs from the STROBEs.
 - :mod:`~onboard.sfa.localisation`: the OBCU (on-board control unit) side.
 - :mod:`~onboard.sfa.sockets`: the listener and the OBCU over real UDP sockets
   (``ato sfa listen``).
@@ -31,6 +32,7 @@ from onboard.sfa.listener import (
 )
 from onboard.sfa.localisation import Localisation, LocalisationEstimate
 from onboard.sfa.reorder import ReorderBuffer
+from onboard.sfa.time_base import SensorTimeBase
 
 __all__ = [
     "ALL_SENSORS",
@@ -46,6 +48,7 @@ __all__ = [
     "LocalisationEstimate",
     "NotInitialisedError",
     "ReorderBuffer",
+    "SensorTimeBase",
     "SfaError",
     "SfaStatus",
     "TrackKalmanFilter",

@@ -10,14 +10,9 @@ first GROUND_TRUTH, ignored because its sensor is disabled, dropped by reason, o
 in the reorder buffer — :meth:`ListenerCounters.accounted` adds them up.
 
 Time (CONTRACT.md §3): a sensor packet's epoch is the last STROBE timestamp plus k / rate, k
-counting that sensor's packets since that STROBE. Under loss a plain count lags (lost packets
-are not counted, a lost STROBE lets the lag grow), so k is the larger of the count and a
-conservative bound from the SEQ_NO distance n to the STROBE, ⌊n · rate / N⌋ − 2, where
-N = 1 + Σ rates is the most packets a second of sensor time can carry. Without loss the count
-is exact and the bound never exceeds it (docs/sfa.md, "Time under loss"). A STROBE off the
-schedule of the last one (not the whole number of seconds after it that its SEQ_NO distance
-spans) sets the time base only once the next STROBE confirms it: one corrupted byte of its time
-would otherwise move every epoch of its second.
+counting that sensor's packets since that STROBE, bounded from below under loss by the SEQ_NO
+distance to it; a STROBE off schedule waits for the next to confirm it.
+:class:`~onboard.sfa.time_base.SensorTimeBase` keeps that time base.
 """
 
 from __future__ import annotations
@@ -29,15 +24,12 @@ from dataclasses import dataclass, field
 from onboard.sfa.filter import FilterConfig, TrackKalmanFilter, check_fix
 from onboard.sfa.reorder import ReorderBuffer
 from onboard.sfa.status import (
-    MAX_STROBE_BACKWARDS_S,
-    MAX_STROBE_GAP_S,
-    STROBE_PERIOD_S,
-    STROBE_TOLERANCE_S,
     Health,
     ListenerCounters,
     SfaStatus,
     plausible,
 )
+from onboard.sfa.time_base import SensorTimeBase
 from protocol import MalformedDatagramError
 from protocol.udp import (
     SEQ_MODULO,
@@ -128,19 +120,13 @@ class ListenerCore:
         self._misplaced_counted = 0
         self.stopped = False
         self.status: SfaStatus | None = None
-        self._periods_s = {
-            SensorType.IMU: 1.0 / self.config.imu_rate_hz,
-            SensorType.ODOMETER: 1.0 / self.config.odometer_rate_hz,
-            SensorType.GPS: 1.0 / self.config.gps_rate_hz,
-        }
-        self._strobe_s = 0.0
-        self._strobe_seq: int | None = None
-        self._strobe_candidate: tuple[float, int] | None = None
-        """(time, SEQ_NO) of the last STROBE dropped as off schedule: the next STROBE on its
-        schedule confirms the new time base."""
-        self._rebase_pending = True
-        self._packets_per_s = 1.0 + sum(1.0 / period for period in self._periods_s.values())
-        self._since_strobe = {SensorType.IMU: 0, SensorType.ODOMETER: 0, SensorType.GPS: 0}
+        self.time_base = SensorTimeBase(
+            imu_rate_hz=self.config.imu_rate_hz,
+            odometer_rate_hz=self.config.odometer_rate_hz,
+            gps_rate_hz=self.config.gps_rate_hz,
+        )
+        # Bound once: called for every sensor packet.
+        self._epoch = self.time_base.epoch
         self._output_seq = 0
         self._last_output_epoch_s = -math.inf
         self._last_seen_s: dict[str, float] = {}
@@ -256,34 +242,11 @@ class ListenerCore:
             self._count_misplaced()
         return outputs
 
-    def _epoch(self, sensor_type: SensorType, seq_no: int) -> float:
-        count = self._since_strobe[sensor_type]
-        period_s = self._periods_s[sensor_type]
-        if self._strobe_seq is not None:
-            distance = (seq_no - self._strobe_seq) % SEQ_MODULO
-            bound = math.floor(distance / (period_s * self._packets_per_s)) - 2
-            count = max(count, bound)
-        self._since_strobe[sensor_type] = count + 1
-        return self._strobe_s + count * period_s
-
     def _process(self, packet: InputPacket) -> None:
         sensor_type = packet.sensor_type
         counters = self.counters
         if sensor_type is SensorType.STROBE:
-            strobe_s = packet.doubles[0]
-            if not self._rebase_pending and not self._strobe_accepted(strobe_s, packet.seq_no):
-                return
-            if self._rebase_pending and self.filter.initialised:
-                # The first STROBE after a GROUND_TRUTH sets the time base of the new run.
-                self.filter.epoch_s = strobe_s
-                self._last_seen_s = {"imu": strobe_s, "odometer": strobe_s}
-            self._rebase_pending = False
-            self._strobe_s = strobe_s
-            self._strobe_seq = packet.seq_no
-            self._strobe_candidate = None
-            for key in self._since_strobe:
-                self._since_strobe[key] = 0
-            counters.processed["strobe"] += 1
+            self._strobe(packet.doubles[0], packet.seq_no)
             return
         if sensor_type is SensorType.STOP:
             counters.processed["stop"] += 1
@@ -315,45 +278,24 @@ class ListenerCore:
         counters.processed[name] += 1
         self._update_status()
 
-    def _on_schedule(self, strobe_s: float, seq_no: int, reference: tuple[float, int]) -> bool:
-        """Whether a STROBE lies a whole number of periods after the ``reference`` STROBE (time,
-        SEQ_NO), that number being the periods its SEQ_NO distance spans at the full rate (at
-        least one: a sender with sensors silent sends fewer packets a second)."""
-        reference_s, reference_seq = reference
-        periods = max(1, round((seq_no - reference_seq) % SEQ_MODULO / self._packets_per_s))
-        return abs(strobe_s - reference_s - periods * STROBE_PERIOD_S) <= STROBE_TOLERANCE_S
-
-    def _strobe_accepted(self, strobe_s: float, seq_no: int) -> bool:
-        """Whether a STROBE may set the time base; counts it as dropped when it may not.
-
-        Beyond 1 s backwards or 600 s forwards it is ``invalid_value``. Off the schedule of the
-        last STROBE (a corrupted time, which a single byte makes anything up to that, or a
-        sender whose clock stepped) it is ``strobe_unconfirmed`` and remembered: the next
-        STROBE on the schedule of the remembered one confirms the new time base, the next on
-        the old schedule refutes it. Until then the epochs run on from the last STROBE, as when
-        a STROBE is lost."""
-        counters = self.counters
-        if not (
-            self._strobe_s - MAX_STROBE_BACKWARDS_S <= strobe_s <= self._strobe_s + MAX_STROBE_GAP_S
-        ):
-            counters.dropped["invalid_value"] += 1
-            return False
-        assert self._strobe_seq is not None  # a STROBE has set the base
-        if self._on_schedule(strobe_s, seq_no, (self._strobe_s, self._strobe_seq)):
-            return True
-        candidate, self._strobe_candidate = self._strobe_candidate, (strobe_s, seq_no)
-        if candidate is not None and self._on_schedule(strobe_s, seq_no, candidate):
-            return True
-        counters.dropped["strobe_unconfirmed"] += 1
-        return False
+    def _strobe(self, strobe_s: float, seq_no: int) -> None:
+        rebase = self.time_base.rebase_pending
+        refused = self.time_base.strobe(strobe_s, seq_no)
+        if refused is not None:
+            self.counters.dropped[refused] += 1
+            return
+        if rebase and self.filter.initialised:
+            # The first STROBE after a GROUND_TRUTH sets the time base of the new run.
+            self.filter.epoch_s = strobe_s
+            self._last_seen_s = {"imu": strobe_s, "odometer": strobe_s}
+        self.counters.processed["strobe"] += 1
 
     def _initialise(self, packet: InputPacket) -> None:
         velocity_x, velocity_y, velocity_z, chainage_km = packet.doubles
         speed_mps = math.copysign(math.hypot(velocity_x, velocity_y, velocity_z), velocity_x)
-        epoch_s = self._strobe_s
+        epoch_s = self.time_base.strobe_s
         self.filter.initialise(chainage_km * 1000.0, speed_mps, epoch_s)
-        self._rebase_pending = True
-        self._strobe_candidate = None
+        self.time_base.rebase()
         self._last_seen_s = {"imu": epoch_s, "odometer": epoch_s}
         self._odometer_rejections = 0
         self._odometer_failed_at_s = None

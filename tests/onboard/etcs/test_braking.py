@@ -293,3 +293,17 @@ def test_the_bisection_limit_function_is_the_limit_arithmetic_bit_for_bit(
                 function = limits._limit_function(limit, acceleration)
                 for speed in speeds:
                     assert function(speed) == limits._limit_m(limit, speed, acceleration)
+
+
+def test_the_curve_distance_function_is_distance_m_bit_for_bit() -> None:
+    """The closure the bisections use gives the curve's own distances, bands and beyond."""
+    builder = LineBuilder(id="steps", name="Gradient steps")
+    builder.straight(5_000.0, speed_kmh=160.0)
+    builder.straight(3_000.0, speed_kmh=160.0, gradient_permille=10.0)
+    builder.straight(4_000.0, speed_kmh=160.0, gradient_permille=-10.0)
+    track_map = TrackMap(builder.build(geodetic_step_m=500.0))
+    target = Target(TargetKind.SPEED_DECREASE, 10_000.0, 40 * MPS_PER_KMH)
+    curve = BrakingModel().target_limits(target, track_map=track_map, from_m=0.0).curve
+    distance_m = curve.distance_function()
+    for speed_mps in (0.0, 5.0, 40 * MPS_PER_KMH, 11.2, 30.0, 44.4, 90.0):
+        assert distance_m(speed_mps) == curve.distance_m(speed_mps)

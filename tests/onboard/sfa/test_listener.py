@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from deploy.bench.sfa_bench import fuzz_datagrams, fuzz_listener
-from onboard.sfa import Health, ListenerConfig, ListenerCore
+from onboard.sfa import Health, ListenerConfig, ListenerCore, SensorTimeBase
 from onboard.sfa.sockets import ListenerRunner
 from protocol.udp import InputPacket, SensorType, decode_output, encode_ack, encode_input
 from tests.conftest import wait_for
@@ -81,6 +81,23 @@ def test_epochs_are_the_strobe_plus_k_over_the_rate(ring: TrackMap) -> None:
     core.feed(packet(SensorType.STROBE, 7, 51.0), 0.0)
     core.feed(packet(SensorType.IMU, 8, *IMU_LEVEL), 0.0)
     assert core.filter.epoch_s == pytest.approx(51.0)
+
+
+def test_the_time_base_counts_epochs_and_holds_a_strobe_off_schedule_until_confirmed() -> None:
+    time_base = SensorTimeBase(imu_rate_hz=100.0, odometer_rate_hz=20.0, gps_rate_hz=1.0)
+    assert time_base.packets_per_s == 122.0
+    assert time_base.strobe(50.0, 1) is None  # the first after start sets the base
+    imu_epochs = [time_base.epoch(SensorType.IMU, seq) for seq in (2, 3)]
+    assert imu_epochs == pytest.approx([50.0, 50.01])
+    # 122 SEQ_NO on (one second of packets) it should read 51 s: held back.
+    assert time_base.strobe(51.5, 123) == "strobe_unconfirmed"
+    assert time_base.strobe(2_000.0, 200) == "invalid_value"  # beyond 600 s ahead
+    # The next second on the schedule of the held one confirms it.
+    assert time_base.strobe(52.5, 245) is None
+    assert time_base.epoch(SensorType.ODOMETER, 246) == 52.5
+    time_base.rebase()  # a GROUND_TRUTH: the next STROBE is taken whatever its time
+    assert time_base.strobe(0.0, 300) is None
+    assert time_base.strobe_s == 0.0
 
 
 def test_under_loss_the_sequence_distance_keeps_the_epoch_from_lagging(ring: TrackMap) -> None:
