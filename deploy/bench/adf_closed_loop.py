@@ -7,7 +7,7 @@ overspeed against the MRSP, accelerations, traction energy, arrivals at stops an
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -144,91 +144,194 @@ def run_handover_sequence(
 ) -> HandoverRecord:
     """RD → AD → RD: remote driving at 30 km/h, autonomous towards a stop 1200 m ahead at
     40 km/h from t = 40 s, remote driving at 20 km/h from t = 100 s, until t = 160 s."""
-    plant = PointMassModel(truth)
-    sc = SupervisoryController()
-    rd = RemoteDrivingController(
-        mass_kg=model.mass_kg, rolling_coefficient=model.davis_a_n / (model.mass_kg * GRAVITY_MPS2)
+    rig = _HandoverRig.build(
+        track_map,
+        model=model,
+        truth=truth,
+        start_chainage_m=start_chainage_m,
+        control_s=control_s,
+        plant_step_s=plant_step_s,
     )
-    nmpc = NmpcController(model, NmpcConfig(step_s=control_s))
-    autonomous: AutonomousDriving | None = None
-    target_mps = 30 * MPS_PER_KMH
-    sc.request(ModeRequest.REMOTE, 0.0)
-    times: list[float] = []
-    forces: list[float] = []
-    speeds: list[float] = []
-    states: list[str] = []
-    switches: list[int] = []
-    jumps: list[float] = []
+    trace = _HandoverTrace()
     for k in range(round(160.0 / control_s)):
         now = k * control_s
-        chainage = track_map.normalise(start_chainage_m + plant.position_m)
-        gradient = track_map.gradient_permille(chainage)
+        gradient = track_map.gradient_permille(rig.chainage_m())
+        requests = rig.scheduled_requests(k, now, gradient, trace.forces)
+        limits = rig.plant.force_limits_n(rig.plant.speed_mps)
+        outputs = rig.controller_outputs(now, gradient, limits, requests)
+        applied = rig.supervise(k, now, outputs, requests, limits, trace)
+        rig.advance_plant(applied)
+        trace.add(now, applied, rig.plant.speed_mps, rig.sc.state.value)
+    return trace.record()
+
+
+@dataclass
+class _HandoverTrace:
+    """What the hand-over sequence notes at each control step, and at each change of state."""
+
+    times: list[float] = field(default_factory=list)
+    forces: list[float] = field(default_factory=list)
+    speeds: list[float] = field(default_factory=list)
+    states: list[str] = field(default_factory=list)
+    switches: list[int] = field(default_factory=list)
+    jumps: list[float] = field(default_factory=list)
+
+    def add(self, now_s: float, force_n: float, speed_mps: float, state: str) -> None:
+        self.times.append(now_s)
+        self.forces.append(force_n)
+        self.speeds.append(speed_mps)
+        self.states.append(state)
+
+    def record(self) -> HandoverRecord:
+        return HandoverRecord(
+            times_s=np.array(self.times),
+            forces_n=np.array(self.forces),
+            speeds_mps=np.array(self.speeds),
+            states=self.states,
+            switch_indices=sorted(set(self.switches)),
+            switch_jumps_n=self.jumps,
+        )
+
+
+@dataclass
+class _HandoverRig:
+    """The plant, the SC and both controllers of the hand-over sequence, and the RD target."""
+
+    track_map: TrackMap
+    model: PointMassParameters
+    plant: PointMassModel
+    sc: SupervisoryController
+    rd: RemoteDrivingController
+    nmpc: NmpcController
+    start_chainage_m: float
+    control_s: float
+    plant_step_s: float
+    autonomous: AutonomousDriving | None = None
+    target_mps: float = 30 * MPS_PER_KMH
+
+    @classmethod
+    def build(
+        cls,
+        track_map: TrackMap,
+        *,
+        model: PointMassParameters,
+        truth: PointMassParameters,
+        start_chainage_m: float,
+        control_s: float,
+        plant_step_s: float,
+    ) -> _HandoverRig:
+        """Everything at rest, the SC asked for remote driving at t = 0."""
+        plant = PointMassModel(truth)
+        sc = SupervisoryController()
+        rd = RemoteDrivingController(
+            mass_kg=model.mass_kg,
+            rolling_coefficient=model.davis_a_n / (model.mass_kg * GRAVITY_MPS2),
+        )
+        nmpc = NmpcController(model, NmpcConfig(step_s=control_s))
+        sc.request(ModeRequest.REMOTE, 0.0)
+        return cls(
+            track_map=track_map,
+            model=model,
+            plant=plant,
+            sc=sc,
+            rd=rd,
+            nmpc=nmpc,
+            start_chainage_m=start_chainage_m,
+            control_s=control_s,
+            plant_step_s=plant_step_s,
+        )
+
+    def chainage_m(self) -> float:
+        """The plant's chainage on the line [m]."""
+        return self.track_map.normalise(self.start_chainage_m + self.plant.position_m)
+
+    def scheduled_requests(
+        self, k: int, now_s: float, gradient_permille: float, forces_n: list[float]
+    ) -> list[ModeRequest]:
+        """The requests of step ``k``: AD on a plan from the current state at t = 40 s, RD at
+        20 km/h, aligned on the last applied force of ``forces_n``, at t = 100 s."""
         requests: list[ModeRequest] = []
-        if k == round(40.0 / control_s):
+        if k == round(40.0 / self.control_s):
             plan = replan_from_state(
-                track_map,
-                model,
-                now_s=now,
-                start_chainage_m=start_chainage_m,
-                distance_m=plant.position_m,
-                speed_mps=plant.speed_mps,
+                self.track_map,
+                self.model,
+                now_s=now_s,
+                start_chainage_m=self.start_chainage_m,
+                distance_m=self.plant.position_m,
+                speed_mps=self.plant.speed_mps,
                 stop_distance_m=1200.0,
                 cruise_mps=40 * MPS_PER_KMH,
             )
-            autonomous = AutonomousDriving(plan, model, nmpc)
+            self.autonomous = AutonomousDriving(plan, self.model, self.nmpc)
             requests.append(ModeRequest.AUTONOMOUS)
-        if k == round(100.0 / control_s):
-            target_mps = 20 * MPS_PER_KMH
-            rd.align(forces[-1], speed_mps=plant.speed_mps, gradient_permille=gradient)
+        if k == round(100.0 / self.control_s):
+            self.target_mps = 20 * MPS_PER_KMH
+            self.rd.align(
+                forces_n[-1], speed_mps=self.plant.speed_mps, gradient_permille=gradient_permille
+            )
             requests.append(ModeRequest.REMOTE)
-        limits = plant.force_limits_n(plant.speed_mps)
+        return requests
+
+    def controller_outputs(
+        self,
+        now_s: float,
+        gradient_permille: float,
+        limits: tuple[float, float],
+        requests: list[ModeRequest],
+    ) -> dict[str, float]:
+        """Both controllers' forces [N], each 0 while the SC does not need it."""
         u_rd = 0.0
-        if sc.needs_remote:
-            u_rd = rd.step(
-                control_s,
-                target_speed_mps=target_mps,
-                speed_mps=plant.speed_mps,
-                gradient_permille=gradient,
+        if self.sc.needs_remote:
+            u_rd = self.rd.step(
+                self.control_s,
+                target_speed_mps=self.target_mps,
+                speed_mps=self.plant.speed_mps,
+                gradient_permille=gradient_permille,
                 force_limits_n=limits,
             )
         u_ad = 0.0
-        if autonomous is not None and (sc.needs_autonomous or requests):
-            u_ad = autonomous.force_n(
-                now,
-                distance_m=plant.position_m,
-                speed_mps=plant.speed_mps,
-                applied_force_n=plant.applied_force_n,
+        if self.autonomous is not None and (self.sc.needs_autonomous or requests):
+            u_ad = self.autonomous.force_n(
+                now_s,
+                distance_m=self.plant.position_m,
+                speed_mps=self.plant.speed_mps,
+                applied_force_n=self.plant.applied_force_n,
             )
-        outputs = {"remote_force_n": u_rd, "autonomous_force_n": u_ad}
+        return {"remote_force_n": u_rd, "autonomous_force_n": u_ad}
+
+    def supervise(
+        self,
+        k: int,
+        now_s: float,
+        outputs: dict[str, float],
+        requests: list[ModeRequest],
+        limits: tuple[float, float],
+        trace: _HandoverTrace,
+    ) -> float:
+        """Pass the requests to the SC and step it, noting the output's jump at each change of
+        state; the force to apply [N] (full brake while the SC is OFF)."""
+        sc = self.sc
         for mode in requests:
             old = sc.output(**outputs)
-            sc.request(mode, now)
-            jumps.append(abs((sc.output(**outputs) or 0.0) - (old or 0.0)))
+            sc.request(mode, now_s)
+            trace.jumps.append(abs((sc.output(**outputs) or 0.0) - (old or 0.0)))
         before = sc.state
         old = sc.output(**outputs)
-        force = sc.step(control_s, now, **outputs)
+        force = sc.step(self.control_s, now_s, **outputs)
         if sc.state is not before:
-            jumps.append(abs((force or 0.0) - (old or 0.0)))
+            trace.jumps.append(abs((force or 0.0) - (old or 0.0)))
         applied = limits[0] if force is None else force
-        if sc.state is not before or (k and states[-1] != before.value):
-            switches.append(k)
-        for _ in range(round(control_s / plant_step_s)):
-            chainage = track_map.normalise(start_chainage_m + plant.position_m)
-            plant.step(
-                plant_step_s,
-                applied,
-                gradient_permille=track_map.gradient_permille(chainage),
-                curve_radius_m=track_map.curve_radius_m(chainage),
+        if sc.state is not before or (k and trace.states[-1] != before.value):
+            trace.switches.append(k)
+        return applied
+
+    def advance_plant(self, force_n: float) -> None:
+        """One control step of the plant under ``force_n`` [N], in plant steps."""
+        for _ in range(round(self.control_s / self.plant_step_s)):
+            chainage = self.chainage_m()
+            self.plant.step(
+                self.plant_step_s,
+                force_n,
+                gradient_permille=self.track_map.gradient_permille(chainage),
+                curve_radius_m=self.track_map.curve_radius_m(chainage),
             )
-        times.append(now)
-        forces.append(applied)
-        speeds.append(plant.speed_mps)
-        states.append(sc.state.value)
-    return HandoverRecord(
-        times_s=np.array(times),
-        forces_n=np.array(forces),
-        speeds_mps=np.array(speeds),
-        states=states,
-        switch_indices=sorted(set(switches)),
-        switch_jumps_n=jumps,
-    )

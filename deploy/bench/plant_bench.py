@@ -120,6 +120,35 @@ def _verdict(ok: bool) -> str:
     return "✓" if ok else "✗"
 
 
+def _plant_table(bogie: dict[str, float], point_mass: dict[str, float]) -> Table:
+    """Both models' figures beside their targets."""
+    table = Table(title="Plant models")
+    for column in ("model", "measure", "value", "target"):
+        table.add_column(column, justify="left" if column in ("model", "measure") else "right")
+    factor_ok = bogie["real_time_factor"] >= TARGET_REAL_TIME_FACTOR
+    table.add_row(
+        "bogie (10 DOF)",
+        f"real-time factor, {bogie['distance_km']:.1f} km in "
+        f"{bogie['simulated_s']:.0f} s simulated",
+        f"{bogie['real_time_factor']:.1f}×",
+        f"{_verdict(factor_ok)} ≥ {TARGET_REAL_TIME_FACTOR:g}×",
+    )
+    table.add_row("", "wall time", f"{bogie['wall_s']:.1f} s", "")
+    table.add_row("", "top speed", f"{bogie['top_speed_kmh']:.1f} km/h", "")
+    table.add_row(
+        "", "traction energy at the wheels", f"{bogie['traction_energy_kwh']:.1f} kWh", ""
+    )
+    for figure in ("median_us", "p99_us"):
+        ok = point_mass[figure] <= TARGET_POINT_MASS_STEP_US
+        table.add_row(
+            "point mass" if figure == "median_us" else "",
+            f"step cost, {figure.removesuffix('_us')}",
+            f"{point_mass[figure]:.2f} µs",
+            f"{_verdict(ok)} ≤ {TARGET_POINT_MASS_STEP_US:g} µs",
+        )
+    return table
+
+
 def bench_plant(
     *,
     distance_km: float = MISSION_DISTANCE_KM,
@@ -156,33 +185,8 @@ def bench_plant(
         "bogie": _run_mission(distance_km, max_speed_kmh),
         "point_mass": _time_point_mass(point_mass_steps, seed),
     }
-    bogie, point_mass = results["bogie"], results["point_mass"]
-    table = Table(title="Plant models")
-    for column in ("model", "measure", "value", "target"):
-        table.add_column(column, justify="left" if column in ("model", "measure") else "right")
-    factor_ok = bogie["real_time_factor"] >= TARGET_REAL_TIME_FACTOR
-    table.add_row(
-        "bogie (10 DOF)",
-        f"real-time factor, {bogie['distance_km']:.1f} km in "
-        f"{bogie['simulated_s']:.0f} s simulated",
-        f"{bogie['real_time_factor']:.1f}×",
-        f"{_verdict(factor_ok)} ≥ {TARGET_REAL_TIME_FACTOR:g}×",
-    )
-    table.add_row("", "wall time", f"{bogie['wall_s']:.1f} s", "")
-    table.add_row("", "top speed", f"{bogie['top_speed_kmh']:.1f} km/h", "")
-    table.add_row(
-        "", "traction energy at the wheels", f"{bogie['traction_energy_kwh']:.1f} kWh", ""
-    )
-    for figure in ("median_us", "p99_us"):
-        ok = point_mass[figure] <= TARGET_POINT_MASS_STEP_US
-        table.add_row(
-            "point mass" if figure == "median_us" else "",
-            f"step cost, {figure.removesuffix('_us')}",
-            f"{point_mass[figure]:.2f} µs",
-            f"{_verdict(ok)} ≤ {TARGET_POINT_MASS_STEP_US:g} µs",
-        )
     console = Console(width=100)
-    console.print(table)
+    console.print(_plant_table(results["bogie"], results["point_mass"]))
     console.print(
         f"Bogie model stepped every {PLANT_STEP_S * 1000:g} ms (substeps ≤"
         f" {DEFAULT_SUBSTEP_S * 1000:g} ms), driven by a stand-in speed loop, not the VCU."

@@ -4,7 +4,8 @@
 1. Accuracy, lockstep drives of the whole chain (emulator → link → listener → Localisation) on
    ``bologna-ring`` and ``milano-bologna``: along-track error RMS with all sensors (≤ 1 m), the
    maximum through a 60 s GPS outage (≤ 10 m), speed error RMS (≤ 0.2 km/h), RMS with 20 % loss
-   plus reordering (≤ 2 m), odometer failure detection (≤ 1 s), and the IMU alone (no target).
+   plus reordering (≤ 2 m), odometer failure detection (≤ 1 s), and the IMU alone (no target);
+   the drives are in :mod:`deploy.bench.sfa_accuracy`.
 2. Fuzzing: random and mutated datagrams into a running listener core, and a share of them over
    UDP into a listener on sockets: no crash, every datagram counted.
 3. Cost: decode + filter per IMU packet (median ≤ 50 µs, p99 printed) and listener throughput
@@ -26,11 +27,11 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from deploy.bench.sfa_accuracy import AccuracyRow, accuracy_rows
 from deploy.bench.sfa_drive import DriveSettings
 from deploy.bench.sfa_lockstep import run_lockstep
 from deploy.stats import percentiles
-from onboard.plant.sensors import SensorFaults, TimeWindow
-from onboard.sfa import LinkFaults, ListenerConfig, ListenerCore
+from onboard.sfa import ListenerCore
 from onboard.sfa.sockets import ListenerRunner
 from protocol.udp import SEQ_MODULO, InputPacket, SensorType, encode_input
 from protocol.units import GRAVITY_MPS2
@@ -46,123 +47,6 @@ __all__ = [
     "imu_cost_us",
     "udp_throughput",
 ]
-
-LINES = {"bologna-ring": 80.0, "milano-bologna": 300.0}
-"""Cruise speed [km/h] of the bench drive on each line."""
-
-
-@dataclass(frozen=True)
-class AccuracyRow:
-    line_id: str
-    case: str
-    figure: str
-    value: float
-    target: str
-    ok: bool | None
-
-
-def _drive(line_id: str, duration_s: float, **changes: object) -> DriveSettings:
-    return DriveSettings(
-        line_id=line_id,
-        duration_s=duration_s,
-        cruise_kmh=LINES[line_id],
-        seed=8,
-        **changes,  # type: ignore[arg-type]
-    )
-
-
-def accuracy_rows(durations_s: dict[str, float]) -> list[AccuracyRow]:
-    """Every accuracy figure on every line, with ``durations_s[line]`` simulated seconds."""
-    rows: list[AccuracyRow] = []
-    for line_id, duration_s in durations_s.items():
-        track_map = TrackMap(load_seed_line(line_id))
-        nominal = run_lockstep(_drive(line_id, duration_s), track_map).stats()
-        rows.append(
-            AccuracyRow(
-                line_id,
-                "all sensors",
-                "position RMS [m]",
-                nominal.position_rms_m,
-                "≤ 1",
-                nominal.position_rms_m <= 1.0,
-            )
-        )
-        rows.append(
-            AccuracyRow(
-                line_id,
-                "all sensors",
-                "speed RMS [km/h]",
-                nominal.speed_rms_kmh,
-                "≤ 0.2",
-                nominal.speed_rms_kmh <= 0.2,
-            )
-        )
-        outage = TimeWindow(0.5 * duration_s, 0.5 * duration_s + 60.0)
-        gps_out = run_lockstep(
-            _drive(line_id, duration_s, sensor_faults=SensorFaults(gps_outages=(outage,))),
-            track_map,
-        ).stats(outage)
-        rows.append(
-            AccuracyRow(
-                line_id,
-                "60 s GPS outage",
-                "position max in it [m]",
-                gps_out.position_max_m,
-                "≤ 10",
-                gps_out.position_max_m <= 10.0,
-            )
-        )
-        lossy = run_lockstep(
-            _drive(line_id, duration_s, link_faults=LinkFaults(loss_rate=0.2, reorder_rate=0.2)),
-            track_map,
-        ).stats()
-        rows.append(
-            AccuracyRow(
-                line_id,
-                "20 % loss + reordering",
-                "position RMS [m]",
-                lossy.position_rms_m,
-                "≤ 2",
-                lossy.position_rms_m <= 2.0,
-            )
-        )
-        for mode, faults in (
-            ("silent", SensorFaults(odometer_outages=(TimeWindow(0.5 * duration_s, 1e9),))),
-            (
-                "stuck at 0",
-                SensorFaults(odometer_stuck_at_zero=(TimeWindow(0.5 * duration_s, 1e9),)),
-            ),
-        ):
-            failed = run_lockstep(_drive(line_id, duration_s, sensor_faults=faults), track_map)
-            delay = failed.detection_delay_s(0.5 * duration_s)
-            rows.append(
-                AccuracyRow(
-                    line_id,
-                    f"odometer {mode}",
-                    "detected after [s]",
-                    float("nan") if delay is None else delay,
-                    "≤ 1",
-                    delay is not None and delay <= 1.0,
-                )
-            )
-        imu_only = run_lockstep(
-            _drive(
-                line_id, min(duration_s, 120.0), listener=ListenerConfig(sensors=frozenset({"imu"}))
-            ),
-            track_map,
-        )
-        rows.append(
-            AccuracyRow(
-                line_id,
-                "IMU alone, 120 s",
-                "position RMS [m]",
-                imu_only.stats().position_rms_m,
-                "degraded",
-                None,
-            )
-        )
-    return rows
-
 
 # -- fuzzing ---------------------------------------------------------------------------------
 

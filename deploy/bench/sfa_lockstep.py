@@ -18,10 +18,10 @@ import numpy.typing as npt
 
 from deploy.bench.sfa_drive import DriveSettings, SpeedProfileDrive
 from deploy.bench.sfa_recording import Recording
-from onboard.plant.sensors import InterfaceModules, TimeWindow
+from onboard.plant.sensors import InterfaceModules, TimeWindow, TruthSample
 from onboard.sfa.link import FaultyLink
 from onboard.sfa.listener import Health, ListenerCore
-from onboard.sfa.localisation import Localisation
+from onboard.sfa.localisation import Localisation, LocalisationEstimate
 from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap, load_seed_line
 
@@ -89,62 +89,106 @@ def run_lockstep(settings: DriveSettings, track_map: TrackMap | None = None) -> 
     track_map = track_map or TrackMap(load_seed_line(settings.line_id))
     rng = np.random.default_rng(settings.seed)
     drive = SpeedProfileDrive(track_map, start_m=settings.start_m, cruise_kmh=settings.cruise_kmh)
-    modules = InterfaceModules(
-        track_map, rng=rng, noise=settings.noise, faults=settings.sensor_faults
-    )
-    link = FaultyLink(settings.link_faults, rng)
-    listener = ListenerCore(track_map, settings.listener)
-    localisation = Localisation(track_map, listener=listener)
-    recording = Recording.empty(settings.line_id) if settings.record else None
-
-    def deliver(now_s: float) -> None:
-        for datagram, arrival_s in link.deliver(now_s):
-            if recording is not None:
-                recording.add_datagram(datagram, arrival_s)
-            for output in listener.feed(datagram, arrival_s):
-                localisation.receive(output, arrival_s)
-
-    ticks = round(settings.duration_s / drive.dt_s) + 1
-    times, position_errors, speed_errors = np.zeros(ticks), np.zeros(ticks), np.zeros(ticks)
-    odometer_alive = np.ones(ticks, dtype=bool)
-    lost = np.zeros(ticks, dtype=bool)
-    count = 0
+    chain = _Chain.build(track_map, settings, rng)
+    errors = _TickErrors.sized(round(settings.duration_s / drive.dt_s) + 1)
     truths = drive.run(settings.duration_s)
     first = next(truths)
-    for datagram in modules.start(first):
-        link.send(datagram, first.time_s)
+    for datagram in chain.modules.start(first):
+        chain.link.send(datagram, first.time_s)
     for truth in itertools.chain([first], truths):
-        now_s = truth.time_s
-        for datagram in modules.step(truth):
-            link.send(datagram, now_s)
-        deliver(now_s)
-        for output in listener.poll(now_s):
-            localisation.receive(output, now_s)
-        for ack in localisation.step(now_s):
-            listener.on_ack(ack, now_s)
-        if recording is not None:
-            recording.add_truth(truth)
-        estimate = localisation.estimate
-        if estimate is None:
-            continue
-        times[count] = now_s
-        position_errors[count] = estimate.position_m - truth.position_m
-        speed_errors[count] = estimate.speed_mps - truth.speed_mps
-        odometer_alive[count] = bool(estimate.odometer_alive)
-        lost[count] = estimate.health is Health.LOST
-        count += 1
-    for datagram in modules.stop():
-        link.send(datagram, drive.time_s)
-    deliver(float("inf"))
+        chain.tick(truth)
+        estimate = chain.localisation.estimate
+        if estimate is not None:
+            errors.add(truth, estimate)
+    for datagram in chain.modules.stop():
+        chain.link.send(datagram, drive.time_s)
+    chain.deliver(float("inf"))
+    count = errors.count
     return DriveResult(
         settings=settings,
-        times_s=times[:count],
-        position_errors_m=position_errors[:count],
-        speed_errors_mps=speed_errors[:count],
-        odometer_alive=odometer_alive[:count],
-        lost=lost[:count],
-        listener=listener,
-        localisation=localisation,
-        link=link,
-        recording=recording,
+        times_s=errors.times_s[:count],
+        position_errors_m=errors.position_errors_m[:count],
+        speed_errors_mps=errors.speed_errors_mps[:count],
+        odometer_alive=errors.odometer_alive[:count],
+        lost=errors.lost[:count],
+        listener=chain.listener,
+        localisation=chain.localisation,
+        link=chain.link,
+        recording=chain.recording,
     )
+
+
+@dataclass
+class _Chain:
+    """Interface-modules → link → listener → Localisation, and the recording if asked for."""
+
+    modules: InterfaceModules
+    link: FaultyLink
+    listener: ListenerCore
+    localisation: Localisation
+    recording: Recording | None
+
+    @classmethod
+    def build(
+        cls, track_map: TrackMap, settings: DriveSettings, rng: np.random.Generator
+    ) -> _Chain:
+        modules = InterfaceModules(
+            track_map, rng=rng, noise=settings.noise, faults=settings.sensor_faults
+        )
+        link = FaultyLink(settings.link_faults, rng)
+        listener = ListenerCore(track_map, settings.listener)
+        localisation = Localisation(track_map, listener=listener)
+        recording = Recording.empty(settings.line_id) if settings.record else None
+        return cls(modules, link, listener, localisation, recording)
+
+    def deliver(self, now_s: float) -> None:
+        """Feed the listener what the link delivers by ``now_s``, each at its arrival time."""
+        for datagram, arrival_s in self.link.deliver(now_s):
+            if self.recording is not None:
+                self.recording.add_datagram(datagram, arrival_s)
+            for output in self.listener.feed(datagram, arrival_s):
+                self.localisation.receive(output, arrival_s)
+
+    def tick(self, truth: TruthSample) -> None:
+        """One tick at the truth's time: send, deliver, poll, localise, acknowledge, record."""
+        now_s = truth.time_s
+        for datagram in self.modules.step(truth):
+            self.link.send(datagram, now_s)
+        self.deliver(now_s)
+        for output in self.listener.poll(now_s):
+            self.localisation.receive(output, now_s)
+        for ack in self.localisation.step(now_s):
+            self.listener.on_ack(ack, now_s)
+        if self.recording is not None:
+            self.recording.add_truth(truth)
+
+
+@dataclass
+class _TickErrors:
+    """The estimate's errors at each tick that had one, in arrays sized for every tick."""
+
+    times_s: FloatArray
+    position_errors_m: FloatArray
+    speed_errors_mps: FloatArray
+    odometer_alive: npt.NDArray[np.bool_]
+    lost: npt.NDArray[np.bool_]
+    count: int = 0
+
+    @classmethod
+    def sized(cls, ticks: int) -> _TickErrors:
+        return cls(
+            times_s=np.zeros(ticks),
+            position_errors_m=np.zeros(ticks),
+            speed_errors_mps=np.zeros(ticks),
+            odometer_alive=np.ones(ticks, dtype=bool),
+            lost=np.zeros(ticks, dtype=bool),
+        )
+
+    def add(self, truth: TruthSample, estimate: LocalisationEstimate) -> None:
+        count = self.count
+        self.times_s[count] = truth.time_s
+        self.position_errors_m[count] = estimate.position_m - truth.position_m
+        self.speed_errors_mps[count] = estimate.speed_mps - truth.speed_mps
+        self.odometer_alive[count] = bool(estimate.odometer_alive)
+        self.lost[count] = estimate.health is Health.LOST
+        self.count = count + 1

@@ -17,7 +17,7 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypedDict
 
 from rich.console import Console
 from rich.table import Table
@@ -34,6 +34,9 @@ from protocol import (
 from protocol import messages as m
 from protocol.registry import ALIVE_ONBOARD, COMMAND, STATUS
 from protocol.router import run_router
+
+if TYPE_CHECKING:
+    import uvicorn
 
 __all__ = ["BenchFigures", "bench_trackside", "fleet_process", "load_process"]
 
@@ -58,6 +61,15 @@ class BenchFigures:
     frames: int
     rest_errors: int
     rest_by_kind_ms: dict[str, dict[str, float]]
+
+
+class _LoadFigures(TypedDict):
+    """What :func:`load_process` puts on its queue: durations and latencies [s]."""
+
+    rest: list[float]
+    by_kind: dict[str, list[float]]
+    errors: int
+    live: list[float]
 
 
 def _vehicle_id(index: int) -> str:
@@ -230,13 +242,31 @@ def run_bench(
     warmup_s: float = 3.0,
 ) -> BenchFigures:
     """Run the three processes and return the figures [ms]."""
-    import uvicorn
-
-    from trackside.config import Settings
-    from trackside.main import create_app
-
     endpoint = loopback_endpoint()
-    stop, router_ready = threading.Event(), threading.Event()
+    stop = threading.Event()
+    router = _start_router(endpoint, stop)
+    with tempfile.TemporaryDirectory() as scratch:
+        server, serving, port = _start_service(Path(scratch), endpoint, stop)
+        figures = _run_fleet_and_load(
+            endpoint,
+            f"http://127.0.0.1:{port}",
+            vehicles=vehicles,
+            seconds=seconds,
+            rate_hz=rate_hz,
+            sockets=sockets,
+            warmup_s=warmup_s,
+            stop=stop,
+        )
+        server.should_exit = True
+        serving.join(10.0)
+    stop.set()
+    router.join(10.0)
+    return _bench_figures(figures)
+
+
+def _start_router(endpoint: str, stop: threading.Event) -> threading.Thread:
+    """The Zenoh router on ``endpoint`` in a thread until ``stop`` is set, once it listens."""
+    router_ready = threading.Event()
     router = threading.Thread(
         target=run_router,
         args=(stop,),
@@ -246,43 +276,71 @@ def run_bench(
     router.start()
     if not router_ready.wait(10.0):
         raise RuntimeError("the Zenoh router did not start")
+    return router
+
+
+def _start_service(
+    scratch: Path, endpoint: str, stop: threading.Event
+) -> tuple[uvicorn.Server, threading.Thread, int]:
+    """ATO-TS under uvicorn in a thread, its database in ``scratch``, once it has started:
+    (server, its thread, its port)."""
+    import uvicorn
+
+    from trackside.config import Settings
+    from trackside.main import create_app
+
+    port = free_tcp_port()
+    settings = Settings(
+        database_url=f"sqlite:///{scratch / 'bench.db'}",
+        zenoh_connect=(endpoint,),
+        admin_user=ADMIN[0],
+        admin_password=ADMIN[1],
+        seed_lines=False,
+    )
+    server = uvicorn.Server(
+        uvicorn.Config(create_app(settings), host="127.0.0.1", port=port, log_level="warning")
+    )
+    serving = threading.Thread(target=server.run, daemon=True)
+    serving.start()
+    while not server.started:
+        stop.wait(0.05)
+    return server, serving, port
+
+
+def _run_fleet_and_load(
+    endpoint: str,
+    base_url: str,
+    *,
+    vehicles: int,
+    seconds: float,
+    rate_hz: float,
+    sockets: int,
+    warmup_s: float,
+    stop: threading.Event,
+) -> _LoadFigures:
+    """The fleet process, and once every vehicle reports, the load process: its raw figures
+    [s], as :func:`load_process` puts them."""
     spawn = multiprocessing.get_context("spawn")
-    with tempfile.TemporaryDirectory() as scratch:
-        port = free_tcp_port()
-        settings = Settings(
-            database_url=f"sqlite:///{Path(scratch) / 'bench.db'}",
-            zenoh_connect=(endpoint,),
-            admin_user=ADMIN[0],
-            admin_password=ADMIN[1],
-            seed_lines=False,
-        )
-        server = uvicorn.Server(
-            uvicorn.Config(create_app(settings), host="127.0.0.1", port=port, log_level="warning")
-        )
-        serving = threading.Thread(target=server.run, daemon=True)
-        serving.start()
-        while not server.started:
-            stop.wait(0.05)
-        fleet_ready = spawn.Event()
-        fleet_s = seconds + warmup_s + 5.0
-        fleet = spawn.Process(target=fleet_process, args=(endpoint, vehicles, fleet_s, fleet_ready))
-        fleet.start()
-        fleet_ready.wait(30.0)
-        stop.wait(warmup_s)  # every vehicle seen alive and reporting
-        results = spawn.Queue()
-        load = spawn.Process(
-            target=load_process,
-            args=(f"http://127.0.0.1:{port}", vehicles, rate_hz, seconds, sockets, results),
-        )
-        load.start()
-        figures = results.get(timeout=seconds + 120.0)
-        load.join(10.0)
-        fleet.terminate()
-        fleet.join(10.0)
-        server.should_exit = True
-        serving.join(10.0)
-    stop.set()
-    router.join(10.0)
+    fleet_ready = spawn.Event()
+    fleet_s = seconds + warmup_s + 5.0
+    fleet = spawn.Process(target=fleet_process, args=(endpoint, vehicles, fleet_s, fleet_ready))
+    fleet.start()
+    fleet_ready.wait(30.0)
+    stop.wait(warmup_s)  # every vehicle seen alive and reporting
+    results = spawn.Queue()
+    load = spawn.Process(
+        target=load_process, args=(base_url, vehicles, rate_hz, seconds, sockets, results)
+    )
+    load.start()
+    figures: _LoadFigures = results.get(timeout=seconds + 120.0)
+    load.join(10.0)
+    fleet.terminate()
+    fleet.join(10.0)
+    return figures
+
+
+def _bench_figures(figures: _LoadFigures) -> BenchFigures:
+    """The load process's raw figures [s] as percentiles [ms]."""
     rest = _percentiles([value * 1e3 for value in figures["rest"]])
     live = _percentiles([value * 1e3 for value in figures["live"]])
     by_kind = {

@@ -34,7 +34,7 @@ import numpy.typing as npt
 from deploy.bench.vcu_closed_loop import step_powertrain, vcu_inputs
 from onboard.plant.bogie import BogieModel
 from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS, BogieParameters
-from onboard.plant.interfaces import ActuatorCommands
+from onboard.plant.interfaces import ActuatorCommands, BogieTruth
 from onboard.plant.powertrain import Powertrain, PowertrainParameters
 from onboard.vcu import vcu_parameters_for
 from onboard.vcu.parameters import VcuParameters
@@ -62,6 +62,7 @@ MANOEUVRE_STEP_S = 0.01
 FloatArray = npt.NDArray[np.float64]
 BoolArray = npt.NDArray[np.bool_]
 StrArray = npt.NDArray[np.str_]
+_Row = tuple[float | bool | str, ...]
 
 
 ACCELERATION_FORCE_N = 20_000.0
@@ -221,7 +222,7 @@ def run_manoeuvre(
     rng = np.random.default_rng(manoeuvre.seed)
     truth = plant.truth()
     commands = ActuatorCommands()
-    rows: list[tuple[float | bool | str, ...]] = []
+    rows: list[_Row] = []
     for _ in range(round(manoeuvre.duration_s / dt_s)):
         speed = sign * truth.speed_mps
         noise = manoeuvre.fused_speed_noise_mps * float(rng.standard_normal())
@@ -233,39 +234,51 @@ def run_manoeuvre(
         plant.step(dt_s, commands, adhesion_factor=adhesion)
         truth = plant.truth()
         step_powertrain(powertrain, dt_s, truth, commands.range_extender_power_w)
-        motors = truth.motor_torque_front_nm + truth.motor_torque_rear_nm
-        status, state = vcu.status, powertrain.state
-        rows.append(
-            (
-                truth.time_s,
-                sign * truth.position_m,
-                sign * truth.speed_mps,
-                fused,
-                sign * truth.wheel_speed_front_radps * radius,
-                sign * truth.wheel_speed_rear_radps * radius,
-                force,
-                truth.motor_torque_front_nm,
-                truth.motor_torque_rear_nm,
-                max(-sign * motors, 0.0),
-                abs(truth.brake_torque_front_nm) + abs(truth.brake_torque_rear_nm),
-                max(-force * radius, 0.0),
-                status.braking_phase.value,
-                status.slip_front,
-                status.slip_rear,
-                adhesion,
-                state.soc,
-                state.battery_power_w,
-                state.drives_power_w,
-                state.range_extender_power_w,
-            )
-        )
+        rows.append(_row(sign, radius, truth, fused, force, adhesion, vcu, powertrain))
         stop = manoeuvre.stop_below_mps
         if stop is not None and truth.time_s > 1.0 and sign * truth.speed_mps < stop:
             break
     return _record(rows)
 
 
-def _record(rows: list[tuple[float | bool | str, ...]]) -> ManoeuvreRecord:
+def _row(
+    sign: float,
+    radius_m: float,
+    truth: BogieTruth,
+    fused_mps: float,
+    force_n: float,
+    adhesion: float,
+    vcu: VehicleControlUnit,
+    powertrain: Powertrain,
+) -> _Row:
+    """One step's sample, in the order of :class:`ManoeuvreRecord`'s fields."""
+    motors = truth.motor_torque_front_nm + truth.motor_torque_rear_nm
+    status, state = vcu.status, powertrain.state
+    return (
+        truth.time_s,
+        sign * truth.position_m,
+        sign * truth.speed_mps,
+        fused_mps,
+        sign * truth.wheel_speed_front_radps * radius_m,
+        sign * truth.wheel_speed_rear_radps * radius_m,
+        force_n,
+        truth.motor_torque_front_nm,
+        truth.motor_torque_rear_nm,
+        max(-sign * motors, 0.0),
+        abs(truth.brake_torque_front_nm) + abs(truth.brake_torque_rear_nm),
+        max(-force_n * radius_m, 0.0),
+        status.braking_phase.value,
+        status.slip_front,
+        status.slip_rear,
+        adhesion,
+        state.soc,
+        state.battery_power_w,
+        state.drives_power_w,
+        state.range_extender_power_w,
+    )
+
+
+def _record(rows: list[_Row]) -> ManoeuvreRecord:
     columns = list(zip(*rows, strict=True))
     fields = dataclasses.fields(ManoeuvreRecord)
     arrays: dict[str, npt.NDArray[np.generic]] = {}

@@ -21,7 +21,7 @@ import numpy.typing as npt
 
 from deploy.bench.vcu_closed_loop import powertrain_feedback
 from onboard.plant.point_mass import URV_PARAMETERS, PointMassModel, PointMassParameters
-from onboard.plant.powertrain import Powertrain, PowertrainParameters
+from onboard.plant.powertrain import Powertrain, PowertrainParameters, PowertrainState
 from onboard.vcu.parameters import VcuInputs, VcuParameters
 from onboard.vcu.unit import VehicleControlUnit
 from protocol.units import MPS_PER_KMH
@@ -75,36 +75,12 @@ def run_energy_mission(
         soc=initial_soc,
     )
     vcu = VehicleControlUnit(vcu_p)
-    radius = vcu_p.wheel_radius_m
     rows: list[tuple[float, ...]] = []
     every = max(round(record_every_s / dt_s), 1)
     step = 0
     while plant.position_m < distance_m:
-        omega = plant.speed_mps / radius
-        commands = vcu.step(
-            dt_s,
-            powertrain_feedback(
-                powertrain,
-                VcuInputs(
-                    speed_reference_mps=speed_reference_mps,
-                    fused_speed_mps=plant.speed_mps,
-                    wheel_speed_front_radps=omega,
-                    wheel_speed_rear_radps=omega,
-                ),
-            ),
-        )
-        motor_torque = commands.motor_torque_front_nm + commands.motor_torque_rear_nm
-        pressure = commands.brake_pressure_front_pa + commands.brake_pressure_rear_pa
-        brake_torque = vcu_p.brake_gain_nm_per_pa * pressure
-        gradient = 0.0 if gradient_permille is None else gradient_permille(plant.position_m)
-        plant.step(dt_s, (motor_torque - brake_torque) / radius, gradient_permille=gradient)
-        state = powertrain.step(
-            dt_s,
-            mechanical_power_front_w=commands.motor_torque_front_nm * omega,
-            mechanical_power_rear_w=commands.motor_torque_rear_nm * omega,
-            range_extender_reference_w=commands.range_extender_power_w,
-            motor_torque_front_nm=commands.motor_torque_front_nm,
-            motor_torque_rear_nm=commands.motor_torque_rear_nm,
+        state = _mission_step(
+            vcu, vcu_p, plant, powertrain, dt_s, speed_reference_mps, gradient_permille
         )
         step += 1
         row = (
@@ -123,3 +99,43 @@ def run_energy_mission(
         rows.append(row)
     columns = np.array(rows, dtype=np.float64).T
     return MissionRecord(*(np.ascontiguousarray(column) for column in columns))
+
+
+def _mission_step(
+    vcu: VehicleControlUnit,
+    vcu_p: VcuParameters,
+    plant: PointMassModel,
+    powertrain: Powertrain,
+    dt_s: float,
+    speed_reference_mps: float,
+    gradient_permille: Callable[[float], float] | None,
+) -> PowertrainState:
+    """One step of ``dt_s`` [s] of the speed loop, the point mass (on the gradient [‰] at its
+    position) and the powertrain; the powertrain's state after it."""
+    radius = vcu_p.wheel_radius_m
+    omega = plant.speed_mps / radius
+    commands = vcu.step(
+        dt_s,
+        powertrain_feedback(
+            powertrain,
+            VcuInputs(
+                speed_reference_mps=speed_reference_mps,
+                fused_speed_mps=plant.speed_mps,
+                wheel_speed_front_radps=omega,
+                wheel_speed_rear_radps=omega,
+            ),
+        ),
+    )
+    motor_torque = commands.motor_torque_front_nm + commands.motor_torque_rear_nm
+    pressure = commands.brake_pressure_front_pa + commands.brake_pressure_rear_pa
+    brake_torque = vcu_p.brake_gain_nm_per_pa * pressure
+    gradient = 0.0 if gradient_permille is None else gradient_permille(plant.position_m)
+    plant.step(dt_s, (motor_torque - brake_torque) / radius, gradient_permille=gradient)
+    return powertrain.step(
+        dt_s,
+        mechanical_power_front_w=commands.motor_torque_front_nm * omega,
+        mechanical_power_rear_w=commands.motor_torque_rear_nm * omega,
+        range_extender_reference_w=commands.range_extender_power_w,
+        motor_torque_front_nm=commands.motor_torque_front_nm,
+        motor_torque_rear_nm=commands.motor_torque_rear_nm,
+    )
