@@ -30,7 +30,7 @@ lint: $(VENV)/.installed-test
 	$(BIN)/ruff format --check .
 
 typecheck: $(VENV)/.installed-test
-	$(BIN)/mypy $(PACKAGES)
+	$(BIN)/mypy $(PACKAGES) tests
 
 # The suite runs on PYTEST_WORKERS processes (pytest-xdist; idle workers take tests queued on
 # busy ones). The lockstep scenario tests dominate and are independent; 1 runs it serially.

@@ -55,7 +55,7 @@ def console_settings(
         database_url=f"sqlite:///{directory / 'ts.db'}",
         zenoh_connect=(router_endpoint,),
         admin_user=ADMIN[0],
-        admin_password=ADMIN[1],  # type: ignore[arg-type]
+        admin_password=ADMIN[1],
         simulated_operators=simulated_operators,
     )
 

@@ -30,8 +30,12 @@ def test_the_soc_minimum_is_timed_from_the_start_and_from_the_cruise() -> None:
     kpis = _energy_kpis(_columns(soc, speed, reference))
     assert kpis["soc_min_time_s"] == 1500.0
     # 199 km/h, the cruise's threshold, is reached at 110.6 s: sample 111.
-    assert_allclose(kpis["soc_min_time_from_cruise_s"], 1500.0 - 111.0, atol=1e-9)
-    assert_allclose(kpis["range_extender_kw_after_soc_min"], 100.0, atol=1e-9)
+    from_cruise_s = kpis["soc_min_time_from_cruise_s"]
+    extender_kw = kpis["range_extender_kw_after_soc_min"]
+    assert from_cruise_s is not None
+    assert extender_kw is not None
+    assert_allclose(from_cruise_s, 1500.0 - 111.0, atol=1e-9)
+    assert_allclose(extender_kw, 100.0, atol=1e-9)
 
 
 def test_without_a_reference_speed_there_is_no_cruise() -> None:

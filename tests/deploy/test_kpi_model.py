@@ -11,7 +11,7 @@ from typing import Any
 
 import jsonschema
 import pytest
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 from typer.testing import CliRunner
 
 import deploy.scenario
@@ -104,9 +104,10 @@ def test_a_renamed_kpi_fails_the_schema_and_the_model(committed_schema: dict[str
 
 
 def test_every_field_says_its_unit_or_what_it_counts() -> None:
+    models: list[type[BaseModel]] = [Kpis, *_nested_models(Kpis)]
     undocumented = [
         f"{model.__name__}.{name}"
-        for model in (Kpis, *_nested_models(Kpis))
+        for model in models
         for name, field in model.model_fields.items()
         if not field.description
     ]
@@ -120,7 +121,7 @@ def test_every_field_says_its_unit_or_what_it_counts() -> None:
     assert unit_missing == []
 
 
-def _nested_models(model: type[Kpis]) -> list[type[Any]]:
+def _nested_models(model: type[Kpis]) -> list[type[BaseModel]]:
     schema = model.model_json_schema()
     return [getattr(deploy.scenario.kpi_model, name) for name in schema["$defs"]]
 

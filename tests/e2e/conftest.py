@@ -24,7 +24,7 @@ def running_trackside(
         database_url=f"sqlite:///{tmp_path / 'ts.db'}",
         zenoh_connect=(router_endpoint,),
         admin_user=ADMIN[0],
-        admin_password=ADMIN[1],  # type: ignore[arg-type]
+        admin_password=ADMIN[1],
     )
     with TestClient(create_app(settings)) as client:
         response = client.post(

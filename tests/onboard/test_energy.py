@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from onboard.adf.energy import optimal_leg, plan_traction_energy_j
-from onboard.adf.odp import InfeasibleLegError, OdpLeg, OdpPlan, plan_legs
+from onboard.adf.odp import InfeasibleLegError, LspbSegment, OdpLeg, OdpPlan, plan_legs
 from onboard.adf.odp_energy import (
     SPEED_OVERREAD_SHARE,
     optimise_leg,
@@ -25,6 +25,7 @@ def test_plan_energy_on_level_track_matches_the_physics() -> None:
     plan = plan_legs(flat, start_chainage_m=0.0, stops=[(2000.0, 240.0, 240.0)], cap_mps=CAP_MPS)
     energy = plan_traction_energy_j(plan, URV_PARAMETERS, step_s=0.05)
     segment = plan.legs[0].segment
+    assert isinstance(segment, LspbSegment)  # plan_legs plans LSPB legs
     p = URV_PARAMETERS
     mass = p.mass_kg * (1 + p.rotating_mass_factor)
     v = segment.cruise_speed_mps

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import threading
 import time
+from typing import Any
 
 import pytest
 
@@ -145,7 +146,7 @@ def test_stop_from_another_thread_ends_an_endless_run() -> None:
 
 
 @pytest.mark.parametrize("kwargs", [{"period_s": 0.0}, {"period_s": 0.1, "phase_s": -1.0}])
-def test_bad_task_parameters(kwargs: dict[str, float]) -> None:
+def test_bad_task_parameters(kwargs: dict[str, Any]) -> None:
     with pytest.raises(ValueError, match="must"):
         Executive(SimClock()).add_task("t", lambda _t: None, **kwargs)
 

@@ -62,7 +62,7 @@ def test_tracks_the_reference_despite_model_mismatch() -> None:
 
 def test_prediction_respects_speed_force_and_power_limits() -> None:
     controller = NmpcController(URV_PARAMETERS)
-    times = np.arange(1, N + 1) * DT
+    times = np.arange(1, N + 1, dtype=np.float64) * DT
     # The reference asks for a little more than the ceiling allows: the ceiling wins.
     reference = NmpcReference(
         position_m=25.0 * times,
@@ -134,7 +134,7 @@ def test_the_fallback_law_holds_the_reference_under_the_ceiling() -> None:
 def test_a_jump_of_the_reference_starts_cold() -> None:
     """A TSR or a replan moves the ceiling at once: the warm start is dropped."""
     controller = NmpcController(URV_PARAMETERS)
-    times = np.arange(1, N + 1) * DT
+    times = np.arange(1, N + 1, dtype=np.float64) * DT
     steady = NmpcReference(10.0 * times, np.full(N, 10.0), np.full(N, 22.0), np.zeros(N))
     for k in range(3):
         assert controller.solve(
@@ -153,7 +153,7 @@ def test_ipopt_agrees_with_the_sqp_configuration() -> None:
     reference = _reference(times + 10.0)
     results = []
     for solver in ("sqpmethod", "ipopt"):
-        controller = NmpcController(URV_PARAMETERS, NmpcConfig(solver=solver))  # type: ignore[arg-type]
+        controller = NmpcController(URV_PARAMETERS, NmpcConfig(solver=solver))
         results.append(
             controller.solve(
                 position_m=25.0, speed_mps=5.0, applied_force_n=0.0, reference=reference

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+from collections.abc import Iterator
 
 import pytest
 import zenoh
@@ -18,7 +19,7 @@ from trackdb import TrackMap, load_seed_line
 
 
 @pytest.fixture
-def node(zenoh_pair: tuple[zenoh.Session, zenoh.Session]):  # type: ignore[no-untyped-def]
+def node(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> Iterator[OnboardNode]:
     _, onboard = zenoh_pair
     node = OnboardNode(
         OnboardSettings(vehicle_id="URV1"),
@@ -31,7 +32,7 @@ def node(zenoh_pair: tuple[zenoh.Session, zenoh.Session]):  # type: ignore[no-un
 
 
 def _command(body: object, command_id: int = 1) -> m.Command:
-    return m.Command(vehicle_id="URV1", command_id=command_id, issued_by="test", body=body)  # type: ignore[arg-type]
+    return m.Command(vehicle_id="URV1", command_id=command_id, issued_by="test", body=body)
 
 
 def test_node_declares_liveliness_and_publishes_status(
@@ -43,10 +44,15 @@ def test_node_declares_liveliness_and_publishes_status(
         TypedSubscriber(trackside, STATUS) as status,
     ):
         assert wait_for(lambda: watcher.alive() == {"ato/alive/ob/URV1"})
+
         # A new subscription takes some milliseconds to reach the publisher: run until the
         # first report arrives, then check each following second of lockstep time. Status is
         # latest-value (dropped under congestion), so a burst is checked a second at a time.
-        assert wait_for(lambda: (node.run(0.2), status.stats.received > 0)[1])
+        def first_report_received() -> bool:
+            node.run(0.2)
+            return status.stats.received > 0
+
+        assert wait_for(first_report_received)
         first = node.reports_sent
         for second in range(1, 11):
             node.run(1.0)
@@ -179,7 +185,12 @@ def test_the_lockstep_barrier_wakes_only_once_the_acknowledgement_can_be_taken(
 
     node.barrier.acked = Probe()
     with TypedPublisher(trackside, STATUS_ACK, vehicle="URV1") as publisher:
-        assert wait_for(lambda: (publisher.put(_ack(0)), bool(received_at_wake))[1])
+
+        def first_wake_seen() -> bool:
+            publisher.put(_ack(0))
+            return bool(received_at_wake)
+
+        assert wait_for(first_wake_seen)
         sent = len(received_at_wake)
         for seq in range(1, 51):
             publisher.put(_ack(seq))

@@ -110,17 +110,33 @@ def test_node_checks_versions_and_acknowledges_journeys(
     node_with_trackside: tuple[OnboardNode, zenoh.Session],
 ) -> None:
     node, trackside = node_with_trackside
+
     # The track_data task asks at t = 0; the answer is taken at a later commands tick.
-    assert wait_for(lambda: (node.run(0.05), node.track_database.versions_match)[1])
+    def versions_checked() -> bool:
+        node.run(0.05)
+        return node.track_database.versions_match
+
+    assert wait_for(versions_checked)
     acks: list[m.JourneyProfileAck] = []
     with (
         TypedSubscriber(trackside, JOURNEY_PROFILE_ACK, on_message=lambda _k, a: acks.append(a)),
         TypedPublisher(trackside, JOURNEY_PROFILE, vehicle="URV1") as journeys,
     ):
         bad = _profile(version="e" * 64, journey_id="stale")
-        assert wait_for(lambda: (journeys.put(bad), node.run(0.05), bool(acks))[2])
+
+        def stale_journey_answered() -> bool:
+            journeys.put(bad)
+            node.run(0.05)
+            return bool(acks)
+
+        assert wait_for(stale_journey_answered)
         assert not acks[0].accepted
         assert "other track data" in (acks[0].reason or "")
         journeys.put(_profile())
-        assert wait_for(lambda: (node.run(0.05), any(a.accepted for a in acks))[1])
+
+        def journey_accepted() -> bool:
+            node.run(0.05)
+            return any(a.accepted for a in acks)
+
+        assert wait_for(journey_accepted)
     assert node.status(node.clock.now_ns).journey_id == "lap"

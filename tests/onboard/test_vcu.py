@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import pytest
 from numpy.testing import assert_allclose
@@ -21,7 +22,7 @@ P = VcuParameters()
 RADIUS = P.wheel_radius_m
 
 
-def moving(speed_mps: float, **changes: float) -> VcuInputs:
+def moving(speed_mps: float, **changes: Any) -> VcuInputs:
     """Inputs of a vehicle rolling without slip at ``speed_mps``; plenty of power."""
     omega = speed_mps / RADIUS
     base = VcuInputs(
@@ -216,7 +217,7 @@ def test_low_soc_phases_out_battery_power_and_runs_the_range_extender_at_full_po
 def test_while_sustaining_the_batteries_lend_only_the_charge_put_back_above_the_threshold() -> None:
     manager = EnergyManager(P)
     continuous = 210.0 * 742.0 * 0.95
-    limits = {"bus_load_w": 150_000.0, "max_discharge_w": 290_000.0}
+    limits: dict[str, Any] = {"bus_load_w": 150_000.0, "max_discharge_w": 290_000.0}
     reference = manager.step(1.0, soc=0.46, continuous_discharge_w=continuous, **limits)
     assert manager.sustaining
     assert_allclose(reference, P.range_extender_max_power_w, atol=1e-9)

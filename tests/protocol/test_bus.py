@@ -47,7 +47,12 @@ def test_pub_sub_between_two_sessions(zenoh_pair: tuple[zenoh.Session, zenoh.Ses
         TypedSubscriber(trackside, STATUS) as subscriber,
         TypedPublisher(onboard, STATUS, vehicle="URV1") as publisher,
     ):
-        assert wait_for(lambda: (publisher.put(_status(0)), subscriber.stats.received > 0)[1])
+
+        def first_status_received() -> bool:
+            publisher.put(_status(0))
+            return subscriber.stats.received > 0
+
+        assert wait_for(first_status_received)
         publisher.put(_status(7))
         assert wait_for(lambda: (subscriber.latest("ato/ob/URV1/status") or _status(0)).seq == 7)
     assert subscriber.stats.bad_payloads == 0
@@ -63,7 +68,12 @@ def test_fifo_keeps_every_message_in_order(zenoh_pair: tuple[zenoh.Session, zeno
         ping = m.Event(
             vehicle_id="URV1", seq=10**6, sim_time_s=0, severity="info", code="x", text=""
         )
-        assert wait_for(lambda: (publisher.put(ping), bool(received))[1])
+
+        def ping_received() -> bool:
+            publisher.put(ping)
+            return bool(received)
+
+        assert wait_for(ping_received)
         received.clear()
         for seq in range(200):
             publisher.put(
@@ -81,12 +91,12 @@ def test_bad_payloads_are_counted_not_raised(
     trackside, onboard = zenoh_pair
     with TypedSubscriber(trackside, STATUS) as subscriber:
         for payload in (b"garbage", b'{"vehicle_id": "URV1"}', b"\xff" * 10):
-            assert wait_for(
-                lambda p=payload: (
-                    onboard.put("ato/ob/URV1/status", p),
-                    subscriber.stats.bad_payloads > 0,
-                )[1]
-            )
+
+            def bad_payload_counted(p: bytes = payload) -> bool:
+                onboard.put("ato/ob/URV1/status", p)
+                return subscriber.stats.bad_payloads > 0
+
+            assert wait_for(bad_payload_counted)
         onboard.put("ato/ob/URV1/status", STATUS.encode(_status(3)))
         assert wait_for(lambda: subscriber.stats.received == 1)
         assert subscriber.stats.last_error is not None
@@ -183,7 +193,7 @@ def test_query_helpers_refuse_the_wrong_kind_of_topic(
 ) -> None:
     trackside, _ = zenoh_pair
     with pytest.raises(ProtocolError, match="is a query topic"):
-        TypedPublisher(trackside, COMMAND, vehicle="URV1")  # type: ignore[arg-type]
+        TypedPublisher(trackside, COMMAND, vehicle="URV1")
     with pytest.raises(ProtocolError, match="not a query topic"):
         TypedQueryable(trackside, STATUS, lambda _c, _s: None)  # type: ignore[arg-type]
 
@@ -199,9 +209,12 @@ def test_liveliness_appears_and_disappears(zenoh_pair: tuple[zenoh.Session, zeno
     trackside, onboard = zenoh_pair
     changes: list[tuple[str, bool]] = []
     seen = threading.Event()
-    with LivelinessWatcher(
-        trackside, "ato/alive/ob/*", lambda k, up: (changes.append((k, up)), seen.set())
-    ) as watcher:
+
+    def on_change(key: str, up: bool) -> None:
+        changes.append((key, up))
+        seen.set()
+
+    with LivelinessWatcher(trackside, "ato/alive/ob/*", on_change) as watcher:
         token = declare_liveliness(onboard, "ato/alive/ob/URV9")
         assert wait_for(lambda: watcher.alive() == {"ato/alive/ob/URV9"})
         token.undeclare()

@@ -24,7 +24,7 @@ CAP_40_KMH = 40 / 3.6
 def _tp(identifier: str, arrival_s: float, **kwargs: object) -> JourneyTimingPoint:
     if "position_m" not in kwargs:
         kwargs.setdefault("stopping_point_id", identifier)
-    return JourneyTimingPoint(id=identifier, arrival_time_s=arrival_s, **kwargs)  # type: ignore[arg-type]
+    return JourneyTimingPoint(id=identifier, arrival_time_s=arrival_s, **kwargs)
 
 
 def _ring_journey(east_arrival_s: float = 300.0) -> Journey:

@@ -35,7 +35,7 @@ def base_url(router_endpoint: str, tmp_path: Path) -> Iterator[str]:
         zenoh_connect=(router_endpoint,),
         admin_user=ADMIN[0],
         admin_password=ADMIN[1],
-        login_max_failures=1000,  # type: ignore[arg-type]
+        login_max_failures=1000,
     )
     server = uvicorn.Server(
         uvicorn.Config(create_app(service), host="127.0.0.1", port=port, log_level="warning")

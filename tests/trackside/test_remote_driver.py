@@ -99,6 +99,10 @@ def _new_user() -> dict[str, str]:
     return {"username": f"u{uuid.uuid4().hex[:10]}", "password": "password-1", "role": "observer"}
 
 
+def _returning(body: dict[str, Any]) -> Callable[[], dict[str, Any]]:
+    return lambda: body
+
+
 def _issue_ma(client: TestClient) -> None:
     response = client.post("/api/v1/rbc/URV1/ma", json=MA, headers=headers_of(client, "admin"))
     assert response.status_code == 201, response.text
@@ -148,7 +152,7 @@ RULES: dict[tuple[str, str], Rule] = {
     ("GET", "/api/v1/audit"): Rule("admin"),
 } | {
     ("POST", f"/api/v1/vehicles/{{vehicle_id}}/{name}"): Rule(
-        "driver", hold=True, json=(lambda body=body: body)
+        "driver", hold=True, json=_returning(body)
     )
     for name, body in COMMANDS.items()
     if not name.startswith("confirmations/")

@@ -7,6 +7,7 @@ import importlib
 import math
 import random
 from dataclasses import replace
+from typing import Any
 
 import pytest
 
@@ -364,7 +365,7 @@ def test_engagement_takes_etcs_from_fs_to_ad_and_back() -> None:
     controller = AtoObController()
     now_s = 0.0
 
-    def cycle(**changes: object) -> AtoObOutput:
+    def cycle(**changes: Any) -> AtoObOutput:
         status = EtcsStatus.from_output(etcs.step(now_s, 100.0, 0.0))
         out = controller.step(now_s, replace(inputs(now_s, **changes), etcs=status))
         etcs.request_automatic_driving(out.automatic_driving_requested, now_s)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import socket
 import struct
 import threading
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -280,6 +281,10 @@ def test_fuzz_over_udp_into_a_running_listener(ring: TrackMap) -> None:
     core = ListenerCore(ring)
     datagrams = [d for d in fuzz_datagrams(np.random.default_rng(5), 3000) if d[:1] != bytes([10])]
     stop = threading.Event()
+
+    def received_more_than(count: int) -> Callable[[], bool]:
+        return lambda: core.counters.received > count
+
     with ListenerRunner(
         core, input_address=("127.0.0.1", 0), obcu_address=("127.0.0.1", 9)
     ) as runner:
@@ -290,7 +295,7 @@ def test_fuzz_over_udp_into_a_running_listener(ring: TrackMap) -> None:
                 for index, datagram in enumerate(datagrams):
                     sender.sendto(datagram, runner.input_address)
                     if index % 100 == 99:
-                        wait_for(lambda i=index: core.counters.received > i - 50, timeout_s=5.0)
+                        wait_for(received_more_than(index - 50), timeout_s=5.0)
             assert wait_for(lambda: core.counters.received == len(datagrams), timeout_s=20.0)
         finally:
             stop.set()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from deploy.bench.vc_runner import ScenarioResult, run_scenario
 from deploy.bench.vc_scenarios import Hazard, HazardKind, OutcomeClass, Scenario
 from onboard.vc import (
@@ -81,7 +83,7 @@ _BASE = SupervisionStatus(
 )
 
 
-def supervision(time_s: float, **changes: object) -> SupervisionStatus:
+def supervision(time_s: float, **changes: Any) -> SupervisionStatus:
     """A Task B status at ``time_s``: monitoring, moving, nothing confirmed, unless changed."""
     return _BASE._replace(time_s=time_s, **changes)
 

@@ -63,7 +63,7 @@ def test_the_decay_row_wins_over_any_other_trigger() -> None:
 
 
 def test_a_state_machine_records_what_it_takes() -> None:
-    machine = StateMachine(ALL_TABLES[Fsm.TASK_B], TaskBState.MONITORING)  # type: ignore[arg-type]
+    machine = StateMachine(ALL_TABLES[Fsm.TASK_B], TaskBState.MONITORING)
     assert machine.fire({Trigger.STANDSTILL}, 0.1) is None
     assert machine.fire({Trigger.EB_CONDITION}, 0.2) is not None
     assert machine.state is TaskBState.EB_DEMANDED
