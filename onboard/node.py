@@ -40,6 +40,7 @@ from onboard.intake import TracksideIntake
 from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.plant.balise_reader import BaliseReader, BaliseReaderFaults
 from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS
+from onboard.plant.marker_reader import StopMarkerReader, StopMarkerReaderFaults
 from onboard.plant.sensors import InterfaceModules
 from onboard.plant.vehicle import BogiePlant, SimulatedVehicle
 from onboard.plant.wheel_sensors import WheelSensors, draw_diameter_error
@@ -48,7 +49,7 @@ from onboard.runtime import Clock, Executive, SimClock
 from onboard.runtime.clock import NS_PER_S
 from onboard.session import SessionClient
 from onboard.session_link import SessionLink
-from onboard.sfa.chain import SensorFusionChain, SensorSettings
+from onboard.sfa.chain import MARKER_FIX_SIGMA_M, SensorFusionChain, SensorSettings
 from onboard.stack import ControlInputs, OnboardStack
 from onboard.status_barrier import StatusBarrier
 from onboard.status_report import status_report
@@ -148,7 +149,7 @@ class OnboardNode:
             if settings.fidelity == "bogie"
             else None
         )
-        vital = _vital_control(settings, self._wheel_travel_m, start_s=clock.now_s)
+        vital = _vital_control(settings, lambda: _wheel_travel_m(self.plant), start_s=clock.now_s)
         self.sensor_fusion = SensorFusionChain(
             track_map, settings.sensors, start_position_m=settings.start_position_m
         )
@@ -250,11 +251,6 @@ class OnboardNode:
         self._emit_all(self.commands.execute_queued(now_ns / NS_PER_S), now_ns)
         self._emit_all(self.stack.take_events(), now_ns)
 
-    def _wheel_travel_m(self) -> tuple[float, float]:
-        """The (front, rear) axles' travel [m] as the axle-end sensors last read it."""
-        wheels = self.plant.wheels
-        return (0.0, 0.0) if wheels is None else (wheels.travel_front_m, wheels.travel_rear_m)
-
     def _task_plant(self, now_ns: int) -> None:
         """The VCU (bogie model) turns the force demand into actuator commands on the last
         tick's readings; the vehicle moves, and its sensors sample."""
@@ -278,6 +274,10 @@ class OnboardNode:
     def _task_sfa(self, now_ns: int) -> None:
         now_s = now_ns / NS_PER_S
         self.sensor_fusion.step(now_s, self.plant.take_datagrams())
+        for marker in self.plant.take_marker_detections():
+            self.sensor_fusion.fix(
+                marker.marker.position_m, marker.time_s, sigma_m=MARKER_FIX_SIGMA_M
+            )
         if self.stack.vital is not None:
             self.stack.vital.fused_speed(self.sensor_fusion.speed_mps, now_s)
 
@@ -418,6 +418,12 @@ class OnboardNode:
             self._datalog.close()
 
 
+def _wheel_travel_m(plant: SimulatedVehicle) -> tuple[float, float]:
+    """The (front, rear) axles' travel [m] as the axle-end sensors last read it."""
+    wheels = plant.wheels
+    return (0.0, 0.0) if wheels is None else (wheels.travel_front_m, wheels.travel_rear_m)
+
+
 def _vital_control(
     settings: OnboardSettings,
     wheel_travel_m: Callable[[], tuple[float, float]],
@@ -482,6 +488,11 @@ def _simulated_vehicle(
             track_map,
             rng=np.random.default_rng([sensors.seed, 3]),
             faults=BaliseReaderFaults(missed_group_ids=sensors.missed_balise_groups),
+        ),
+        marker_reader=StopMarkerReader(
+            track_map,
+            rng=np.random.default_rng([sensors.seed, 4]),
+            faults=StopMarkerReaderFaults(missed_marker_ids=sensors.missed_stop_markers),
         ),
         start_s=start_s,
     )

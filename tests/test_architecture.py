@@ -307,6 +307,7 @@ VEHICLE_OUTPUTS = frozenset(
         "take_datagrams",
         "take_wheel_readings",
         "take_balise_detections",
+        "take_marker_detections",
         "wheels",
         "drive",
         "powertrain_reading",

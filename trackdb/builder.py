@@ -26,6 +26,7 @@ from trackdb.schema import (
     PacketSection,
     ProfileSection,
     StaticSpeedProfilePacket,
+    StopMarker,
     StoppingPoint,
     TemporarySpeedRestriction,
     parse_line,
@@ -93,6 +94,7 @@ class LineBuilder:
     """Initial heading, counterclockwise from east [deg]."""
     _stretches: list[_Stretch] = field(default_factory=list)
     _stops: list[StoppingPoint] = field(default_factory=list)
+    _markers: list[StopMarker] = field(default_factory=list)
     _groups: list[_Group] = field(default_factory=list)
     _tsrs: list[TemporarySpeedRestriction] = field(default_factory=list)
 
@@ -140,6 +142,11 @@ class LineBuilder:
         )
         return self
 
+    def stop_marker(self, id: str, position_m: float) -> Self:
+        """A precision-stop marker at ``position_m`` [m] (markers go in increasing chainage)."""
+        self._markers.append(StopMarker(id=id, position_m=position_m))
+        return self
+
     def balise_group(
         self,
         id: int,
@@ -181,6 +188,9 @@ class LineBuilder:
             "temporary_speed_restrictions": [t.model_dump() for t in self._tsrs],
             "balise_groups": [g.model_dump() for g in self._balise_groups(gradients, speeds)],
             "stopping_points": [p.model_dump() for p in self._stops],
+            "stop_markers": [
+                m.model_dump() for m in sorted(self._markers, key=lambda m: m.position_m)
+            ],
             "geodetic": [p.model_dump() for p in self._geodetic(geodetic_step_m)],
         }
         return parse_line(line_document)

@@ -49,6 +49,7 @@ __all__ = [
     "PacketSection",
     "ProfileSection",
     "StaticSpeedProfilePacket",
+    "StopMarker",
     "StoppingPoint",
     "TemporarySpeedRestriction",
     "line_json_schema",
@@ -177,6 +178,16 @@ class StoppingPoint(_Model):
     )
 
 
+class StopMarker(_Model):
+    """A precision-stop marker: a passive tag between the rails, before a stopping point, that
+    the vehicle's short-range reader detects as the front end passes over it. Its location is a
+    position fix of a few centimetres where a stop needs one (the balise groups' ±1 m and the
+    GNSS's decimetres are not enough for ±0.5 m), as metro ATOs' precision-stop transponders."""
+
+    id: Identifier
+    position_m: NonNegativeMetres = Field(description="Chainage of the tag's centre [m]")
+
+
 class GeoPoint(_Model):
     """A point of the geodetic polyline (WGS 84)."""
 
@@ -201,6 +212,9 @@ class Line(_Model):
     temporary_speed_restrictions: tuple[TemporarySpeedRestriction, ...] = ()
     balise_groups: tuple[BaliseGroup, ...] = ()
     stopping_points: tuple[StoppingPoint, ...] = ()
+    stop_markers: tuple[StopMarker, ...] = Field(
+        default=(), description="Precision-stop markers, by increasing chainage"
+    )
     geodetic: tuple[GeoPoint, ...] = Field(default=(), description="Polyline by chainage")
 
     @model_validator(mode="after")
@@ -294,6 +308,13 @@ def _check_points(line: Line) -> list[str]:
         if point.position_m >= line.length_m:
             problems.append(f"stopping_points[{index}] {point.id}: beyond the line's end")
     problems += _unique("stopping_points", [p.id for p in line.stopping_points])
+    problems += _unique("stop_markers", [m.id for m in line.stop_markers])
+    for index, marker in enumerate(line.stop_markers):
+        where = f"stop_markers[{index}] {marker.id}"
+        if marker.position_m >= line.length_m:
+            problems.append(f"{where}: beyond the line's end")
+        if index and marker.position_m <= line.stop_markers[index - 1].position_m:
+            problems.append(f"{where}: not after the previous marker")
     group_ids = {group.id for group in line.balise_groups}
     problems += _unique("balise_groups", [g.id for g in line.balise_groups])
     for index, group in enumerate(line.balise_groups):

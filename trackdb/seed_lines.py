@@ -4,8 +4,9 @@
   rounded rectangle (two 1100 m and two 493 m straights, four quarter circles of 400 m radius,
   turning left), gentle gradients that close in altitude, line speed 80 km/h on the straights and
   60 km/h in the curves (so the journey's 40 km/h cap is the operator's choice), three stopping
-  points, and four balise groups whose movement authorities let a train run round the ring; the
-  first, 150 m from the origin, is the one that brings Full Supervision.
+  points (±0.5 m) each with a precision-stop marker 30 m before it, and four balise groups whose
+  movement authorities let a train run round the ring; the first, 150 m from the origin, is the
+  one that brings Full Supervision.
 - ``milano-bologna``: a high-speed line of 200 km for the seed 003 mission, ETCS Level 2:
   300 km/h with 120–250 km/h sections near the ends and at a junction, large-radius curves,
   gradients within ±12 ‰, stations at both ends and four intermediate stopping points, a balise
@@ -29,6 +30,10 @@ __all__ = ["SEED_LINES", "bologna_ring", "load_seed_line", "milano_bologna"]
 RING_RADIUS_M = 400.0
 RING_LONG_STRAIGHT_M = 1100.0
 RING_LENGTH_M = 5700.0
+STOP_MARKER_BEFORE_M = 30.0
+"""The ring's precision-stop markers lie this far before its stopping points [m]: passed in the
+final braking, some 5 s before the stop at the plans' 0.5 m/s², early enough for the controller
+to take up the fix's correction, late enough that little odometry error builds up after it."""
 
 
 def bologna_ring() -> Line:
@@ -56,9 +61,14 @@ def bologna_ring() -> Line:
         .straight(short, speed_kmh=80, gradient_permille=1.0)
         .curve(quarter, RING_RADIUS_M, speed_kmh=60, gradient_permille=closing_gradient)
     )
-    builder.stopping_point("north", "North platform", 550.0)
-    builder.stopping_point("east", "East platform", 1100.0 + quarter + short / 2.0)
-    builder.stopping_point("south", "South platform", 1100.0 + 2 * quarter + short + 550.0)
+    stops = {
+        "north": ("North platform", 550.0),
+        "east": ("East platform", 1100.0 + quarter + short / 2.0),
+        "south": ("South platform", 1100.0 + 2 * quarter + short + 550.0),
+    }
+    for stop_id, (name, position) in stops.items():
+        builder.stopping_point(stop_id, name, position)
+        builder.stop_marker(f"{stop_id}-marker", position - STOP_MARKER_BEFORE_M)
     groups = (101, 150.0), (102, 1800.0), (103, 2950.0), (104, 4650.0)
     for index, (group_id, position) in enumerate(groups):
         after_next = groups[(index + 2) % len(groups)][1]

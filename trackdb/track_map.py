@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -27,13 +28,20 @@ import numpy.typing as npt
 from trackdb._exceptions import NoGeodeticPolylineError
 from trackdb._geometry import GeodeticPolyline, GpsProjection
 from trackdb._profiles import (
+    Point,
     Profile,
     SpeedSection,
     build_mrsp,
     points_ahead,
     window_sections,
 )
-from trackdb.schema import BaliseGroup, Line, StoppingPoint, TemporarySpeedRestriction
+from trackdb.schema import (
+    BaliseGroup,
+    Line,
+    StopMarker,
+    StoppingPoint,
+    TemporarySpeedRestriction,
+)
 
 __all__ = ["DEFAULT_MAX_CROSS_TRACK_M", "DEFAULT_WINDOW_M", "SpeedSection", "TrackMap"]
 
@@ -67,6 +75,8 @@ class TrackMap:
         self._stop_positions_m = [point.position_m for point in self._stops]
         self._groups = sorted(line.balise_groups, key=lambda group: group.position_m)
         self._group_positions_m = [group.position_m for group in self._groups]
+        self._markers = line.stop_markers  # validated in increasing chainage
+        self._marker_positions_m = [marker.position_m for marker in self._markers]
         self._polyline = (
             GeodeticPolyline(line.geodetic, length_m=line.length_m, ring=line.ring)
             if line.geodetic
@@ -248,13 +258,24 @@ class TrackMap:
             Each group with its distance [m] ahead, in the order the train meets them. On a
             ring a window longer than the ring meets a group once per lap.
         """
-        return points_ahead(
-            self._groups,
-            self._group_positions_m,
-            self.normalise(chainage_m),
-            distance_m,
-            ring_length_m=self._length_m if self._ring else None,
-        )
+        return self._ahead(self._groups, self._group_positions_m, chainage_m, distance_m)
+
+    def stop_markers_ahead(
+        self, chainage_m: float, distance_m: float
+    ) -> list[tuple[StopMarker, float]]:
+        """The precision-stop markers ahead, as :meth:`balise_groups_ahead` gives groups."""
+        return self._ahead(self._markers, self._marker_positions_m, chainage_m, distance_m)
+
+    def _ahead(
+        self,
+        points: Sequence[Point],
+        positions_m: list[float],
+        chainage_m: float,
+        distance_m: float,
+    ) -> list[tuple[Point, float]]:
+        ring_length_m = self._length_m if self._ring else None
+        at_m = self.normalise(chainage_m)
+        return points_ahead(points, positions_m, at_m, distance_m, ring_length_m=ring_length_m)
 
     # -- geodesy ------------------------------------------------------------------------------
 

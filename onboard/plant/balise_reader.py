@@ -1,16 +1,11 @@
 """The balise transmission module (BTM): balise groups read under the antenna, as the train does.
 
 The BTM reads a group's telegram as the antenna passes over it and reports the instant it
-located the group's centre. That location has an error (SUBSET-036 allows ±1 m): the front end
-was then near the group, not exactly on it. :class:`BaliseReader` follows the true front-end
-position tick by tick and reports a :class:`~onboard.plant.readings.BaliseDetection` when the
-front passes a group's location plus that reading's error, drawn from the seed; the detection's
-instant is interpolated within the tick. A fault option makes chosen groups, or every group in
-chosen time windows, go unread (the scenario ``balise-missed``).
-
-Groups are read in the direction of increasing chainage only, and once per pass: the reader
-follows the furthest position reached, so a train rolling back and on again over a group does
-not read it twice. On a ring each lap is a new pass. Error sources and values: docs/sensors.md.
+located the group's centre, with a location error (SUBSET-036 allows ±1 m): the front end was
+then near the group, not exactly on it. The reading itself, once per pass and forwards only, is
+:class:`~onboard.plant.point_reader.PointReader`'s. A fault option makes chosen groups, or
+every group in chosen time windows, go unread (the scenario ``balise-missed``). Error sources
+and values: docs/sensors.md.
 """
 
 from __future__ import annotations
@@ -19,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from onboard.plant.point_reader import PointReader
 from onboard.plant.readings import BaliseDetection
 from onboard.plant.sensors import TimeWindow
 from trackdb import BaliseGroup, TrackMap
@@ -51,8 +47,9 @@ class BaliseReaderFaults:
         )
 
 
-class BaliseReader:
-    """The true front-end position in, :class:`BaliseDetection` out, one plant tick at a time.
+class BaliseReader(PointReader[BaliseGroup, BaliseDetection]):
+    """The BTM: the true front-end position in, :class:`BaliseDetection` out, one plant tick at
+    a time (:class:`~onboard.plant.point_reader.PointReader`).
 
     Parameters
     ----------
@@ -66,14 +63,6 @@ class BaliseReader:
         Largest location error [m], at least ``location_sigma_m``.
     faults : BaliseReaderFaults, optional
         Groups or time windows whose readings are lost.
-
-    Attributes
-    ----------
-    read, missed : int
-        Readings reported, and readings lost to a fault.
-    last_errors_m : dict of int to float
-        For each group id, the location error [m] of its last reading (reported or lost):
-        where the front end was, beyond the group, at the detection's instant.
     """
 
     def __init__(
@@ -85,110 +74,29 @@ class BaliseReader:
         location_bound_m: float = LOCATION_BOUND_M,
         faults: BaliseReaderFaults | None = None,
     ) -> None:
-        if location_sigma_m < 0.0 or location_bound_m < location_sigma_m:
-            raise ValueError("need 0 <= location_sigma_m <= location_bound_m")
-        self.track_map = track_map
-        self.rng = rng
-        self.location_sigma_m = location_sigma_m
-        self.location_bound_m = location_bound_m
+        super().__init__(
+            track_map,
+            rng=rng,
+            location_sigma_m=location_sigma_m,
+            location_bound_m=location_bound_m,
+        )
         self.faults = faults or BaliseReaderFaults()
-        self.read = 0
-        self.missed = 0
-        self.last_errors_m: dict[int, float] = {}
-        self._time_s = 0.0
-        self._position_m: float | None = None
-        self._furthest_m = 0.0
-        self._errors_m: dict[tuple[int, int], float] = {}
-        """The drawn error of each pass not yet read, by (group id, lap)."""
-        self._done: set[tuple[int, int]] = set()
-        """The passes read, lost, or behind the start, still near enough to be seen again."""
 
-    def step(self, time_s: float, front_position_m: float) -> list[BaliseDetection]:
-        """The groups read since the last step.
+    def points_ahead(self, chainage_m: float, distance_m: float) -> list[tuple[BaliseGroup, float]]:
+        return self.track_map.balise_groups_ahead(chainage_m, distance_m)
 
-        Parameters
-        ----------
-        time_s : float
-            The tick's instant [s].
-        front_position_m : float
-            The true front-end position [m], unwrapped on a ring (it keeps counting past the
-            origin). The first step only places the reader: a group whose reading point lies
-            at or behind it is not read.
+    def identity(self, point: BaliseGroup) -> int:
+        return point.id
 
-        Returns
-        -------
-        list of BaliseDetection
-            In the order met, each at the instant [s] interpolated within the tick at which
-            the front passed the group's location plus the reading's error.
-        """
-        last_time_s, last_m = self._time_s, self._position_m
-        self._time_s, self._position_m = time_s, front_position_m
-        if last_m is None:
-            self._furthest_m = front_position_m
-            for key, _, location_m in self._passes(front_position_m):
-                if location_m + self._error_m(key) <= front_position_m:
-                    self._done.add(key)
-                    del self._errors_m[key]
-            return []
-        furthest_m = self._furthest_m
-        if front_position_m <= furthest_m:
-            return []
-        detections: list[BaliseDetection] = []
-        for key, group, location_m in self._passes(front_position_m):
-            if key in self._done:
-                continue
-            error_m = self._error_m(key)
-            reading_m = location_m + error_m
-            if reading_m > front_position_m:
-                continue
-            self._done.add(key)
-            del self._errors_m[key]
-            # The front moved linearly from last_m over the tick, and the reading point lies
-            # beyond furthest_m ≥ last_m: the fraction is within (0, 1].
-            fraction = (reading_m - last_m) / (front_position_m - last_m)
-            detection_s = last_time_s + fraction * (time_s - last_time_s)
-            self.last_errors_m[group.id] = error_m
-            if self.faults.missed(group.id, detection_s):
-                self.missed += 1
-                continue
-            self.read += 1
-            detections.append(BaliseDetection(time_s=detection_s, group=group))
-        self._furthest_m = front_position_m
-        detections.sort(key=lambda detection: detection.time_s)
-        return detections
+    def chainage_m(self, point: BaliseGroup) -> float:
+        return point.position_m
 
-    def _passes(self, front_m: float) -> list[tuple[tuple[int, int], BaliseGroup, float]]:
-        """The passes over a group whose reading point may lie between the furthest position
-        and ``front_m`` [m]: (group id, lap), the group, its unwrapped location [m]. Passes
-        left behind for good are forgotten."""
-        bound_m = self.location_bound_m
-        start_m = self._furthest_m - bound_m
-        ahead = self.track_map.balise_groups_ahead(start_m, front_m + bound_m - start_m)
-        length_m = self.track_map.length_m
-        ring = self.track_map.line.ring
-        passes: list[tuple[tuple[int, int], BaliseGroup, float]] = []
-        for group, distance_m in ahead:
-            location_m = start_m + distance_m
-            lap = round((location_m - group.position_m) / length_m) if ring else 0
-            passes.append(((group.id, lap), group, location_m))
-        # A pass before the window's start can never come back into it (the start only moves
-        # forward); its error was used.
-        keys = {key for key, _, _ in passes}
-        self._done &= keys
-        return passes
+    def detection(self, time_s: float, point: BaliseGroup) -> BaliseDetection:
+        return BaliseDetection(time_s=time_s, group=point)
 
-    def _error_m(self, key: tuple[int, int]) -> float:
-        """The location error [m] of a pass, drawn when first asked for."""
-        error_m = self._errors_m.get(key)
-        if error_m is None:
-            error_m = self._errors_m[key] = self._draw_error()
-        return error_m
+    def lost(self, point: BaliseGroup, time_s: float) -> bool:
+        return self.faults.missed(point.id, time_s)
 
-    def _draw_error(self) -> float:
-        sigma, bound = self.location_sigma_m, self.location_bound_m
-        if sigma <= 0.0:
-            return 0.0
-        while True:
-            error = float(self.rng.normal(0.0, sigma))
-            if abs(error) <= bound:
-                return error
+    @staticmethod
+    def time_of(detection: BaliseDetection) -> float:
+        return detection.time_s

@@ -17,9 +17,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from trackdb import BaliseGroup
+from trackdb import BaliseGroup, StopMarker
 
-__all__ = ["BaliseDetection", "DriveReading", "PowertrainReading", "WheelReading"]
+__all__ = [
+    "BaliseDetection",
+    "DriveReading",
+    "MarkerDetection",
+    "PowertrainReading",
+    "WheelReading",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -47,6 +53,15 @@ class BaliseDetection:
 
     time_s: float
     group: BaliseGroup
+
+
+@dataclass(frozen=True, slots=True)
+class MarkerDetection:
+    """A precision-stop marker found by the marker reader: the marker, and the instant [s] the
+    reader located its centre under the cab (within a few centimetres of it)."""
+
+    time_s: float
+    marker: StopMarker
 
 
 @dataclass(frozen=True, slots=True)

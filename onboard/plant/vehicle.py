@@ -22,7 +22,13 @@ from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS, BogieParameters
 from onboard.plant.interfaces import ActuatorCommands, BogieTruth
 from onboard.plant.point_mass import PointMassModel
 from onboard.plant.powertrain import Powertrain, PowertrainParameters
-from onboard.plant.readings import BaliseDetection, DriveReading, PowertrainReading, WheelReading
+from onboard.plant.readings import (
+    BaliseDetection,
+    DriveReading,
+    MarkerDetection,
+    PowertrainReading,
+    WheelReading,
+)
 from onboard.plant.sensors import InterfaceModules, TruthSample, truth_from_bogie
 from trackdb import TrackMap
 
@@ -30,6 +36,7 @@ __all__ = [
     "BaliseReaderModel",
     "BogiePlant",
     "Dynamics",
+    "MarkerReaderModel",
     "SimulatedVehicle",
     "WheelSensorModel",
     "force_limits_n",
@@ -164,6 +171,12 @@ class BaliseReaderModel(Protocol):
     def step(self, time_s: float, front_position_m: float) -> Sequence[BaliseDetection]: ...
 
 
+class MarkerReaderModel(Protocol):
+    """The precision-stop marker reader: the true front end in, the markers found under it out."""
+
+    def step(self, time_s: float, front_position_m: float) -> Sequence[MarkerDetection]: ...
+
+
 class SimulatedVehicle:
     """The dynamics on the line, and the sensors that watch them.
 
@@ -175,9 +188,9 @@ class SimulatedVehicle:
         The vehicle's truth.
     interface_modules : InterfaceModules, optional
         The IMU, odometer and GPS emulator whose UDP datagrams feed the sensor-fusion listener.
-    wheel_sensors, balise_reader : optional
+    wheel_sensors, balise_reader, marker_reader : optional
         The axle-end sensors (ETCS's odometer, the VC's tachometer board, the VCU's slip
-        protection) and the BTM.
+        protection), the BTM and the precision-stop marker reader.
     """
 
     def __init__(
@@ -188,6 +201,7 @@ class SimulatedVehicle:
         interface_modules: InterfaceModules | None = None,
         wheel_sensors: WheelSensorModel | None = None,
         balise_reader: BaliseReaderModel | None = None,
+        marker_reader: MarkerReaderModel | None = None,
         start_s: float = 0.0,
     ) -> None:
         self.track_map = track_map
@@ -195,10 +209,12 @@ class SimulatedVehicle:
         self.interface_modules = interface_modules
         self.wheel_sensors = wheel_sensors
         self.balise_reader = balise_reader
+        self.marker_reader = marker_reader
         self.time_s = start_s
         self._datagrams: list[bytes] = []
         self._wheel_readings: list[WheelReading] = []
         self._balises: list[BaliseDetection] = []
+        self._markers: list[MarkerDetection] = []
         truth = self.truth
         if interface_modules is not None:
             self._datagrams.extend(interface_modules.start(truth))
@@ -311,6 +327,8 @@ class SimulatedVehicle:
             self._wheel_readings.append(self.wheels)
         if self.balise_reader is not None:
             self._balises.extend(self.balise_reader.step(truth.time_s, truth.position_m))
+        if self.marker_reader is not None:
+            self._markers.extend(self.marker_reader.step(truth.time_s, truth.position_m))
 
     def _wheel_truth(self, truth: TruthSample) -> BogieTruth | TruthSample:
         """Each wheel's rotation on the bogie model; the body's travel on the point mass."""
@@ -331,6 +349,11 @@ class SimulatedVehicle:
     def take_balise_detections(self) -> list[BaliseDetection]:
         """The balise groups the BTM located since the last call, oldest first."""
         detections, self._balises = self._balises, []
+        return detections
+
+    def take_marker_detections(self) -> list[MarkerDetection]:
+        """The stop markers the marker reader located since the last call, oldest first."""
+        detections, self._markers = self._markers, []
         return detections
 
     @property

@@ -91,6 +91,15 @@ def test_version_is_a_content_hash() -> None:
         ({"curve_radius_m": [{"start_m": 100, "end_m": 50, "value": 300}]}, "non-positive length"),
         ({"curve_radius_m": [{"start_m": 100, "end_m": 200, "value": 10}]}, "below 50 m"),
         ({"stopping_points": [{"id": "x", "name": "X", "position_m": 1000.0}]}, "beyond"),
+        ({"stop_markers": [{"id": "m", "position_m": 1000.0}]}, "stop_markers[0] m: beyond"),
+        (
+            {"stop_markers": [{"id": "a", "position_m": 300.0}, {"id": "b", "position_m": 200.0}]},
+            "not after the previous marker",
+        ),
+        (
+            {"stop_markers": [{"id": "a", "position_m": 100.0}, {"id": "a", "position_m": 200.0}]},
+            "stop_markers: duplicate id a",
+        ),
     ],
 )
 def test_invalid_lines_list_their_problems(overrides: dict[str, object], problem: str) -> None:
