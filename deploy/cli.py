@@ -234,6 +234,30 @@ def run_scenario(
     raise typer.Exit(run_from_cli(scenario, fast=fast, speed=speed, seed=seed, report=report))
 
 
+# The generated campaign's options (``ato campaign --generate``), named so that the command's
+# signature reads as its list of options.
+GenerateOption = Annotated[
+    int | None,
+    typer.Option(
+        min=1,
+        help="Generate this many scenarios from the space and judge the "
+        "invariants (instead of named scenarios).",
+    ),
+]
+GeneratorSeedOption = Annotated[int, typer.Option(min=0, help="--generate: the generator's seed.")]
+SpaceOption = Annotated[
+    Path | None, typer.Option(help="--generate: the space file (default: the ring's).")
+]
+GeneratedOutOption = Annotated[
+    Path | None,
+    typer.Option(help="--generate: where the files go (default .ato/generated/seed-S)."),
+]
+ShrinkRunsOption = Annotated[
+    int,
+    typer.Option(min=0, help="--generate: runs allowed to shrink each invariant's first failure."),
+]
+
+
 @app.command()
 def campaign(
     scenarios: Annotated[
@@ -246,28 +270,11 @@ def campaign(
         list[str] | None, typer.Option(help="KEY=V1,V2: sweep a scenario field (repeatable).")
     ] = None,
     json_path: Annotated[Path | None, typer.Option("--json", help="Write the summary.")] = None,
-    generate: Annotated[
-        int | None,
-        typer.Option(
-            min=1,
-            help="Generate this many scenarios from the space and judge the "
-            "invariants (instead of named scenarios).",
-        ),
-    ] = None,
-    seed: Annotated[int, typer.Option(min=0, help="--generate: the generator's seed.")] = 1,
-    space: Annotated[
-        Path | None, typer.Option(help="--generate: the space file (default: the ring's).")
-    ] = None,
-    out: Annotated[
-        Path | None,
-        typer.Option(help="--generate: where the files go (default .ato/generated/seed-S)."),
-    ] = None,
-    shrink_runs: Annotated[
-        int,
-        typer.Option(
-            min=0, help="--generate: runs allowed to shrink each invariant's first failure."
-        ),
-    ] = 12,
+    generate: GenerateOption = None,
+    seed: GeneratorSeedOption = 1,
+    space: SpaceOption = None,
+    out: GeneratedOutOption = None,
+    shrink_runs: ShrinkRunsOption = 12,
 ) -> None:
     """Scenarios × seeds × variations in lockstep over worker processes; a summary table. Exit
     1 if a run crashed or ended unsafe (overspeed beyond the EBI, EoA passed, obstacle reached).

@@ -194,6 +194,19 @@ def campaign_from_cli(
     with _campaign_progress(console, len(cells)) as (_bar, finished):
         results = run_campaign(cells, workers=workers, on_result=finished)
     summary = summarise(results)
+    Console().print(_campaign_table(summary, results))
+    for cell in summary["cells"]:
+        if cell["error"] or cell["unsafe"] or cell["failed_expectations"]:
+            what = cell["error"] or "; ".join(cell["unsafe"] + cell["failed_expectations"])
+            Console().print(f"  {cell['label']}: {what.strip().splitlines()[-1]}")
+    if json_path is not None:
+        write_summary(summary, json_path)
+        console.print(f"summary written to {json_path}")
+    return 0 if summary["crashed"] == 0 and summary["unsafe"] == 0 else 1
+
+
+def _campaign_table(summary: dict[str, Any], results: list[CellResult]) -> Table:
+    """One row a scenario: its runs' verdicts, margins, stop errors and speed."""
     table = Table(
         title=f"campaign: {summary['runs']} runs, {summary['crashed']} crashed, "
         f"{summary['unsafe']} unsafe"
@@ -230,15 +243,7 @@ def campaign_from_cli(
             " / ".join(stat("stops.stop_error_m.abs", which) for which in ("median", "p99", "max")),
             stat("real_time_factor", "median"),
         )
-    Console().print(table)
-    for cell in summary["cells"]:
-        if cell["error"] or cell["unsafe"] or cell["failed_expectations"]:
-            what = cell["error"] or "; ".join(cell["unsafe"] + cell["failed_expectations"])
-            Console().print(f"  {cell['label']}: {what.strip().splitlines()[-1]}")
-    if json_path is not None:
-        write_summary(summary, json_path)
-        console.print(f"summary written to {json_path}")
-    return 0 if summary["crashed"] == 0 and summary["unsafe"] == 0 else 1
+    return table
 
 
 def _result_line(result: CellResult) -> str:
