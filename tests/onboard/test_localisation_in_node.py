@@ -97,13 +97,29 @@ def _error_past_the_north_marker(
 ) -> tuple[float, int]:
     """|fused − true position| [m] 10 m past the north stop's marker (520 m), driving remotely at
     30 km/h on an SBAS-class GNSS (1 m of correlated error), and the markers read."""
+    trackside, onboard = zenoh_pair
     noise = SensorNoise(gps_correlated_horizontal_sigma_m=1.0, gps_correlation_time_s=600.0)
-    node = _drive(zenoh_pair, sensors=SensorSettings(seed=7, noise=noise, **sensors))  # type: ignore[arg-type]
+    node = OnboardNode(
+        OnboardSettings(
+            vehicle_id="URV1",
+            sensors=SensorSettings(seed=7, noise=noise, **sensors),  # type: ignore[arg-type]
+        ),
+        session=onboard,
+        clock=SimClock(),
+        track_map=RING,
+    )
     try:
+        node.track_database.record_trackside_version(
+            m.LineVersionReply(line_id=RING.line.id, version=RING.version)
+        )
+        hands = LockstepOperator(trackside, node)
+        assert wait_for(lambda: _reachable(hands))
+        hands.run(3.0)
+        assert hands.command(m.RemoteDrivingTargetCommand(target_speed_mps=30 / 3.6)).accepted
         marker = RING.line.stop_markers[0]
         assert marker.id == "north-marker"
-        while node.plant.position_m < marker.position_m + 10.0:
-            node.run(0.2)
+        past = marker.position_m + 10.0
+        assert hands.run_until(lambda: node.plant.position_m >= past, limit_s=150.0)
         reader = node.plant.marker_reader
         assert isinstance(reader, StopMarkerReader)
         error_m = abs(node.sensor_fusion.position_m - node.plant.position_m)
