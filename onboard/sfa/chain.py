@@ -31,6 +31,7 @@ from trackdb import TrackMap
 __all__ = [
     "BALISE_FIX_SIGMA_M",
     "LOCALISATION_MAX_SIGMA_M",
+    "MARKER_FIX_SIGMA_M",
     "ZERO_SPEED_MPS",
     "SensorFusionChain",
     "SensorSettings",
@@ -41,6 +42,9 @@ ZERO_SPEED_MPS = 0.05
 BALISE_FIX_SIGMA_M = 1.0
 """σ of a balise group's location as a fix [m]: the BTM's location error (σ ≤ 0.5 m, see
 docs/sensors.md) and the group's surveyed location together."""
+MARKER_FIX_SIGMA_M = 0.05
+"""σ of a precision-stop marker's location as a fix [m]: the marker reader's error (σ 0.02 m,
+docs/sensors.md) and the tag's surveyed location together."""
 LOCALISATION_MAX_SIGMA_M = 5.0
 """⚠ Above this σ [m] the fused position is not good enough to drive on: localisation is not
 valid (a stop must be made within ±0.5 m; 5 m is where the filter has clearly lost its aiding
@@ -61,6 +65,8 @@ class SensorSettings:
     (σ 0.2 %) when None. The axle-end sensors' (and so ETCS's and the VC's) scale error."""
     missed_balise_groups: frozenset[int] = frozenset()
     """Balise groups (NID_BG) the BTM fails to read (an injected fault)."""
+    missed_stop_markers: frozenset[str] = frozenset()
+    """Precision-stop markers (by id) the marker reader fails to read (an injected fault)."""
 
 
 class SensorFusionChain:
@@ -105,14 +111,17 @@ class SensorFusionChain:
         for ack in localisation.step(now_s):
             listener.on_ack(ack, now_s)
 
-    def fix(self, chainage_m: float, detected_s: float) -> None:
-        """A balise group located by the BTM at ``detected_s`` [s], at its chainage on the line
-        [m]. The fix is taken at the filter's epoch, moved by the estimated speed over the time
-        between (the filter may run a little behind or ahead of the detection)."""
+    def fix(
+        self, chainage_m: float, detected_s: float, *, sigma_m: float = BALISE_FIX_SIGMA_M
+    ) -> None:
+        """A point of the track located at ``detected_s`` [s], at its chainage on the line [m],
+        with σ ``sigma_m`` [m] (a balise group read by the BTM by default). The fix is taken at
+        the filter's epoch, moved by the estimated speed over the time between (the filter may
+        run a little behind or ahead of the detection)."""
         flt = self.listener.filter
         epoch_s = flt.epoch_s if flt.initialised else detected_s
         fix_m = self.track_map.normalise(chainage_m + (epoch_s - detected_s) * self.speed_mps)
-        self.localisation.fix(fix_m, BALISE_FIX_SIGMA_M, epoch_s)
+        self.localisation.fix(fix_m, sigma_m, epoch_s)
 
     @property
     def estimate(self) -> LocalisationEstimate | None:
