@@ -281,7 +281,7 @@ class TelemetryRecorder:
         self._stopped_at = stop.timing_point_id
         if any(record.name == stop.timing_point_id for record in self.stops):
             return
-        travelled = node.plant.position_m - driving._origin_m
+        travelled = node.plant.position_m - driving.progress.origin_m
         self.stops.append(
             StopRecord(
                 name=stop.timing_point_id,

@@ -35,6 +35,7 @@ shortened movement authority, a new TSR, an obstacle, or the end of an ETCS inte
 from __future__ import annotations
 
 import bisect
+import contextlib
 import math
 from dataclasses import dataclass, field
 
@@ -639,37 +640,66 @@ def replan_from_state(
     InfeasibleLegError
         When the stop is closer than the planned braking allows from ``speed_mps``.
     """
-    chainage = start_chainage_m + distance_m
-    profile: ProfileLeg | None = None
-    if arrival_s is not None:
-        try:
-            profile = optimise_leg(
-                track_map,
-                model,
-                start_chainage_m=chainage,
-                distance_m=stop_distance_m,
-                duration_s=arrival_s - now_s,
-                cap_mps=cruise_mps,
-                initial_speed_mps=speed_mps,
-                braking_mps2=braking_mps2,
-                limit_braking_mps2=limit_braking_mps2,
-            )
-        except InfeasibleLegError:
-            profile = None
-    if profile is None:
-        track = LegTrack(
-            track_map,
-            model,
-            start_chainage_m=chainage,
-            distance_m=stop_distance_m,
-            cap_mps=cruise_mps,
-            braking_mps2=braking_mps2,
-            limit_braking_mps2=limit_braking_mps2,
-        )
-        profile = build_profile(track, holding_speed_mps=cruise_mps, initial_speed_mps=speed_mps)
+    profile = _replanned_profile(
+        track_map,
+        model,
+        start_chainage_m=start_chainage_m + distance_m,
+        distance_m=stop_distance_m,
+        duration_s=None if arrival_s is None else arrival_s - now_s,
+        cruise_mps=cruise_mps,
+        initial_speed_mps=speed_mps,
+        braking_mps2=braking_mps2,
+        limit_braking_mps2=limit_braking_mps2,
+    )
     return OdpPlan(
         [OdpLeg(now_s, distance_m, profile)],
         start_chainage_m=start_chainage_m,
         track_map=track_map,
         cap_mps=cruise_mps,
     )
+
+
+def _replanned_profile(
+    track_map: TrackMap,
+    model: PointMassParameters,
+    *,
+    start_chainage_m: float,
+    distance_m: float,
+    duration_s: float | None,
+    cruise_mps: float,
+    initial_speed_mps: float,
+    braking_mps2: float,
+    limit_braking_mps2: float | None,
+) -> ProfileLeg:
+    """:func:`replan_from_state`'s leg: on time (after ``duration_s`` [s]) with the least
+    traction energy when that is given and possible, else holding ``cruise_mps`` and braking at
+    the end (as early as the limits allow).
+
+    Raises
+    ------
+    InfeasibleLegError
+        When the stop is closer than the planned braking allows from ``initial_speed_mps``.
+    """
+    if duration_s is not None:
+        with contextlib.suppress(InfeasibleLegError):
+            return optimise_leg(
+                track_map,
+                model,
+                start_chainage_m=start_chainage_m,
+                distance_m=distance_m,
+                duration_s=duration_s,
+                cap_mps=cruise_mps,
+                initial_speed_mps=initial_speed_mps,
+                braking_mps2=braking_mps2,
+                limit_braking_mps2=limit_braking_mps2,
+            )
+    track = LegTrack(
+        track_map,
+        model,
+        start_chainage_m=start_chainage_m,
+        distance_m=distance_m,
+        cap_mps=cruise_mps,
+        braking_mps2=braking_mps2,
+        limit_braking_mps2=limit_braking_mps2,
+    )
+    return build_profile(track, holding_speed_mps=cruise_mps, initial_speed_mps=initial_speed_mps)

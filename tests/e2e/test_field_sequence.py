@@ -182,7 +182,7 @@ def test_the_seed_000_field_sequence_on_bologna_ring(
                     vehicle.node.plant.position_m, vehicle.node.plant.speed_mps
                 )
                 if stop is not None and (not stops or stops[-1][0] != stop.timing_point_id):
-                    error = vehicle.node.plant.position_m - stack.driving._origin_m
+                    error = vehicle.node.plant.position_m - stack.driving.progress.origin_m
                     stops.append(
                         (
                             stop.timing_point_id,
