@@ -8,7 +8,7 @@ PACKAGES := protocol trackdb onboard trackside deploy
 PG_URL := postgresql+psycopg://postgres@127.0.0.1:5432/test
 PG_UP = $(shell $(BIN)/python -c "import socket; s=socket.socket(); s.settimeout(0.5); print('yes' if s.connect_ex(('127.0.0.1', 5432)) == 0 else '')" 2>/dev/null)
 
-.PHONY: demo test lint typecheck pytest bench clean
+.PHONY: demo test check lint typecheck pytest pytest-quick bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -41,6 +41,15 @@ pytest: $(VENV)/.installed-test
 		$(BIN)/python -m pytest $(if $(filter-out 1,$(PYTEST_WORKERS)),-n $(PYTEST_WORKERS) --dist worksteal,)
 
 test: lint typecheck pytest
+
+# The inner loop: lint, types and the tests not marked e2e, browser, scenario or slow (no
+# processes started, no simulated minutes; fewer hypothesis examples), in under two minutes on
+# two cores. CI runs `test`.
+pytest-quick: $(VENV)/.installed-test
+	ATO_HYPOTHESIS_PROFILE=ato-quick $(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist worksteal \
+		-m "not e2e and not browser and not scenario and not slow"
+
+check: lint typecheck pytest-quick
 
 bench: $(VENV)/.installed-test
 	$(BIN)/ato bench zenoh

@@ -22,9 +22,11 @@ from protocol.router import run_router
 WAIT_S = 5.0
 
 # No wall-clock deadline on hypothesis examples: the suite asserts behaviour, not speed, and a
-# loaded machine (CI, a campaign alongside) makes a 200 ms deadline fail at random.
+# loaded machine (CI, a campaign alongside) makes a 200 ms deadline fail at random. The inner
+# loop (`make check`) draws fewer examples; `make test` and CI draw the full number.
 settings.register_profile("ato", deadline=None)
-settings.load_profile("ato")
+settings.register_profile("ato-quick", deadline=None, max_examples=15)
+settings.load_profile(os.environ.get("ATO_HYPOTHESIS_PROFILE", "ato"))
 
 
 def wait_for(

@@ -9,6 +9,8 @@ import pytest
 from deploy.bench.plant_bench import bench_plant, stand_in_driver
 from deploy.bench.plant_plots import PLOT_FILES
 
+pytestmark = pytest.mark.scenario
+
 
 def test_stand_in_driver_drives_then_brakes() -> None:
     start = stand_in_driver(0.0, 0.0, stop_m=1000.0, max_speed_mps=20.0)

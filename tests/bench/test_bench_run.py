@@ -14,6 +14,8 @@ from deploy.bench.run_bench import RunSample, bench_run, run_once, summarise
 from deploy.scenario.kpi_model import Kpis
 from tests.deploy.kpi_samples import sample_kpis
 
+pytestmark = pytest.mark.scenario
+
 SCENARIOS = Path(__file__).resolve().parents[2] / "deploy" / "scenarios"
 
 

@@ -13,6 +13,8 @@ from typer.testing import CliRunner
 from deploy.bench.sfa_bench import bench_sfa, imu_cost_us
 from deploy.cli import app
 
+pytestmark = pytest.mark.scenario
+
 runner = CliRunner()
 
 

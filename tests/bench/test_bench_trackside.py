@@ -4,7 +4,11 @@ from __future__ import annotations
 
 import math
 
+import pytest
+
 from deploy.bench.trackside_bench import run_bench
+
+pytestmark = pytest.mark.scenario
 
 
 def test_a_small_bench_measures_rest_and_live_latency() -> None:

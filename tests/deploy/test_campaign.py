@@ -21,6 +21,8 @@ from deploy.scenario.campaign import (
 )
 from tests.deploy.kpi_samples import sample_kpis
 
+pytestmark = pytest.mark.scenario
+
 
 def test_variations_parse_and_set_a_field_by_its_path() -> None:
     variation = parse_variation("faults.0.at_s=90,110.5")

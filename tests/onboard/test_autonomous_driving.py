@@ -17,6 +17,8 @@ from onboard.plant import URV_PARAMETERS
 from onboard.plant.point_mass import with_model_mismatch
 from trackdb import TrackMap, load_seed_line
 
+pytestmark = pytest.mark.scenario
+
 START_M = 200.0
 CAP_MPS = 40 / 3.6
 STOPS = [(1775.0, 300.0, 320.0), (3200.0, 550.0, 570.0), (6050.0, 1000.0, 1000.0)]

@@ -14,6 +14,8 @@ from onboard.plant.contact import longitudinal_creep_force
 from onboard.plant.interfaces import ActuatorCommands
 from onboard.plant.point_mass import GRAVITY_MPS2, URV_PARAMETERS, PointMassModel
 
+pytestmark = pytest.mark.scenario
+
 P = URV_BOGIE_PARAMETERS
 WEIGHT_N = P.total_mass_kg * GRAVITY_MPS2
 FULL_TORQUE = ActuatorCommands(

@@ -14,6 +14,8 @@ from protocol.messages import ScState
 from trackdb import TrackMap, load_seed_line
 from trackdb.schema import TemporarySpeedRestriction
 
+pytestmark = pytest.mark.scenario
+
 CONTROL_S, PLANT_S = 0.2, 0.01
 
 

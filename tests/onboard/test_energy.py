@@ -17,6 +17,8 @@ from onboard.etcs.braking import BrakingModel, Limit, Target, TargetKind
 from onboard.plant import URV_PARAMETERS
 from trackdb import LineBuilder, TemporarySpeedRestriction, TrackMap, load_seed_line
 
+pytestmark = pytest.mark.scenario
+
 CAP_MPS = 40 / 3.6
 
 

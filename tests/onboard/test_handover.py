@@ -9,6 +9,8 @@ from onboard.plant import URV_PARAMETERS
 from onboard.plant.point_mass import with_model_mismatch
 from trackdb import TrackMap, load_seed_line
 
+pytestmark = pytest.mark.scenario
+
 U_RANGE_N = URV_PARAMETERS.max_traction_force_n + URV_PARAMETERS.max_brake_force_n
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import pytest
 import zenoh
 
 from onboard.ato_ob import Condition
@@ -16,6 +17,8 @@ from protocol import messages as m
 from tests.conftest import wait_for
 from tests.operator import LockstepOperator
 from trackdb import TrackMap, load_seed_line
+
+pytestmark = pytest.mark.scenario
 
 RING = TrackMap(load_seed_line("bologna-ring"))
 

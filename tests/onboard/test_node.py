@@ -17,6 +17,8 @@ from tests.conftest import wait_for
 from tests.operator import LockstepOperator
 from trackdb import TrackMap, load_seed_line
 
+pytestmark = pytest.mark.scenario
+
 
 @pytest.fixture
 def node(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> Iterator[OnboardNode]:

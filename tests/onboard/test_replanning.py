@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import pytest
+
 from onboard.adf.autonomous import AutonomousDriving
 from onboard.adf.nmpc import NmpcController
 from onboard.adf.odp import OdpPlan, plan_legs
@@ -12,6 +14,8 @@ from onboard.adf.odp_energy import plan_energy_legs, replan_from_state
 from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.plant.point_mass import with_model_mismatch
 from trackdb import TemporarySpeedRestriction, TrackMap, load_seed_line
+
+pytestmark = pytest.mark.scenario
 
 CONTROL_S, PLANT_S = 0.2, 0.01
 START_M = 200.0

@@ -23,6 +23,8 @@ from deploy.bench.vcu_manoeuvres import (
 from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS as BOGIE
 from onboard.vcu import VcuParameters, electric_share, leading_share, vcu_parameters_for
 
+pytestmark = pytest.mark.scenario
+
 VCU = vcu_parameters_for(BOGIE)
 MAX_TORQUE_NM = BOGIE.motor_max_torque_nm
 STEPS_PER_S = 100

@@ -13,6 +13,8 @@ from numpy.testing import assert_allclose
 
 from deploy.bench.vcu_mission import MissionRecord, run_energy_mission
 
+pytestmark = pytest.mark.scenario
+
 REFERENCE_MPS = 200.0 / 3.6
 
 

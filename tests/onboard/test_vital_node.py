@@ -21,6 +21,8 @@ from tests.conftest import wait_for
 from tests.operator import LockstepOperator
 from trackdb import TrackMap, load_seed_line
 
+pytestmark = pytest.mark.scenario
+
 RING = TrackMap(load_seed_line("bologna-ring"))
 KMH = 1 / 3.6
 

@@ -22,6 +22,8 @@ from tests.trackside.conftest import ADMIN
 from trackside.config import Settings
 from trackside.main import create_app
 
+pytestmark = pytest.mark.slow
+
 schemathesis = pytest.importorskip("schemathesis")
 
 EXAMPLES_PER_OPERATION = 25

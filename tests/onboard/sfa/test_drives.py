@@ -12,6 +12,8 @@ from onboard.plant.sensors import SensorFaults, TimeWindow
 from onboard.sfa import Health, LinkFaults, ListenerConfig
 from trackdb import TrackMap, load_seed_line
 
+pytestmark = pytest.mark.scenario
+
 RING_S = 200.0
 
 

@@ -20,6 +20,8 @@ from onboard.sfa import FilterConfig, ListenerConfig
 from protocol.udp import SensorType, decode_input
 from trackdb import TrackMap, load_seed_line
 
+pytestmark = pytest.mark.scenario
+
 
 @pytest.fixture(scope="module")
 def ring() -> TrackMap:

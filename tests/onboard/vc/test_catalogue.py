@@ -12,6 +12,8 @@ from deploy.bench.vc_runner import ScenarioResult, count_by_class, format_report
 from deploy.bench.vc_scenarios import SEED_HAZARDOUS_COUNTS, SEED_SCENARIO_COUNT, OutcomeClass
 from onboard.vc import Fsm, PairEventKind, transition_coverage
 
+pytestmark = pytest.mark.scenario
+
 SEED_LETTERS = {"A", "B", "C", "D", "E", "F", "G", "L", "M", "N"}
 
 

@@ -18,6 +18,8 @@ from onboard.vc import (
 )
 from tests.onboard.vc.helpers import quick
 
+pytestmark = pytest.mark.scenario
+
 
 def _conditions(result: ScenarioResult) -> list[int]:
     return [int(e.detail.split()[0]) for e in result.events if e.kind is VcEventKind.EB_CONDITION]
