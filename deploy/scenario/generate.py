@@ -81,12 +81,12 @@ RESTORE_BEHIND_M = 200.0
 """A restored MA ends this far behind the shortened stop, nearly a lap ahead on a ring [m]."""
 FALLBACK_FAULTS = ("zenoh_link_loss", "ato_failure", "vigilance_absent")
 """Faults that can end in a fallback stop, after which the operator engages ATO again."""
-CLOSED_UP_M = 9.0
-"""ETCS's distance to an EoA short of the stop under which the train has closed up to it [m]:
-the RBC gives the route back then. Standing d before the EoA, the ADF closes up while its stop
-(5 m + 6 % of d before the EoA) is 3 m or more closer, so once closed up d < 8.5 m; at 15 m the
-route came back at the first standstill, before the train had closed up (10.03 m on the truth
-in a generated run)."""
+MOTION_SENSORS = frozenset({"imu", "odometer"})
+"""Sensors whose outages together take the fused localisation away: with neither the IMU nor
+the odometer the filter's health is lost, the ATO-OB disengages, brakes to a standstill and
+waits for the remote driver's engage (docs/truth_boundary.md, "Localisation valid"), so the
+operator engages ATO again. The GPS out with the odometer leaves the IMU with its calibrated
+bias: gen-1-128 rode through 24 s of it."""
 
 
 @dataclass(frozen=True)
@@ -352,10 +352,10 @@ def _tsr_fault(
 
 
 def _ma_events(
-    track_map: TrackMap, legs: list[_Leg], ma: MaDraw, tps: list[str]
+    track_map: TrackMap, legs: list[_Leg], ma: MaDraw, tps: list[str], *, closed_up_m: float
 ) -> tuple[ShortenedAuthority, Action | None] | None:
     """The shortening, and the RBC's new MA once the train stands at it (none after the last
-    stop); None when the leg has no room for it."""
+    stop), within ``closed_up_m`` of an EoA short of the stop; None when the leg has no room."""
     leg = legs[ma.leg]
     eoa_along = leg.length_m + (ma.offset_m if ma.placement == "beyond" else -ma.offset_m)
     latest = eoa_along - _braking_m(leg.top_mps, 0.0)
@@ -392,8 +392,10 @@ def _ma_events(
     near = round(0.1 * (eoa_along - trigger) + 60.0 + max(ma.offset_m, 0.0), 1)
     when = f"standstill and eoa_distance_m < {near}"
     if ma.placement == "before":
-        # Once the train has closed up to the EoA (docs/decisions.md, "Closing up to an EoA").
-        when = f"standstill and next_stop == {tps[ma.leg]} and eoa_distance_m < {CLOSED_UP_M}"
+        # Once the train stands closed up to the EoA, on the truth as the invariant judges it
+        # (docs/decisions.md, "Closing up to an EoA"): ETCS's distance is off by its odometry's
+        # drift, metres 1.5 km past a balise group.
+        when = "standstill and " + _in_leg(track_map, leg, tps[ma.leg], eoa_along - closed_up_m)
     behind_m = min(eoa_along, leg.length_m) - RESTORE_BEHIND_M  # behind the EoA short of the stop
     restore = (
         track_map.normalise(leg.start_m + behind_m)
@@ -436,7 +438,7 @@ def render(space: GeneratorSpace, base: Draw) -> ScenarioSpec:
             faults.append(fault)
     actions = _preamble()
     for ma in base.mas:
-        events = _ma_events(track_map, legs, ma, tps)
+        events = _ma_events(track_map, legs, ma, tps, closed_up_m=space.invariants.max_eoa_stop_m)
         if events is not None:
             faults.append(events[0])
             if events[1] is not None:
@@ -453,7 +455,8 @@ def render(space: GeneratorSpace, base: Draw) -> ScenarioSpec:
         operator=OperatorSpec(
             simulated=True,
             reaction_s=base.reaction_s,
-            reengage=any(f.kind in FALLBACK_FAULTS for f in base.faults),
+            reengage=any(f.kind in FALLBACK_FAULTS for f in base.faults)
+            or _localisation_can_be_lost(base.faults),
         ),
         journey=JourneySpec(
             id="generated", max_speed_kmh=base.cap_kmh, timing_points=tuple(points)
@@ -461,6 +464,20 @@ def render(space: GeneratorSpace, base: Draw) -> ScenarioSpec:
         actions=tuple(actions),
         faults=tuple(faults),
         invariants=space.invariants,
+    )
+
+
+def _localisation_can_be_lost(faults: tuple[Fault, ...]) -> bool:
+    """Whether outages of both :data:`MOTION_SENSORS` overlap in time."""
+    outages = [
+        ("odometer" if isinstance(f, OdometerFailure) else f.sensor, f.start_s, f.end_s)
+        for f in faults
+        if isinstance(f, SensorDropout | OdometerFailure)
+    ]
+    return any(
+        {a[0], b[0]} == MOTION_SENSORS and a[1] < b[2] and b[1] < a[2]
+        for a in outages
+        for b in outages
     )
 
 
@@ -488,6 +505,7 @@ def _comment(space: GeneratorSpace, base: Draw) -> str:
     track_map, geometry = _geometry(space, base)
     tps = [f"tp{k + 1}-{leg.stop_id}" for k, leg in enumerate(base.legs)]
     left_out = " (left out: no room for it in the leg)"
+    closed_up = space.invariants.max_eoa_stop_m
     lines += [
         f"TSR in leg {t.leg + 1}: {t.placement}, {t.speed_kmh:g} km/h over {t.length_m:g} m"
         + ("" if _tsr_fault(track_map, geometry, t, tps[t.leg]) else left_out)
@@ -495,7 +513,7 @@ def _comment(space: GeneratorSpace, base: Draw) -> str:
     ]
     lines += [
         f"MA shortened in leg {a.leg + 1}: {a.offset_m:g} m {a.placement} the stop"
-        + ("" if _ma_events(track_map, geometry, a, tps) else left_out)
+        + ("" if _ma_events(track_map, geometry, a, tps, closed_up_m=closed_up) else left_out)
         for a in base.mas
     ]
     lines.append("Re-run: ato run THIS_FILE --fast (the invariants are its expectations).")

@@ -17,7 +17,14 @@ from deploy.scenario.console import run_from_cli
 from deploy.scenario.generate import draw, generate, plain_lspb_time_s, render
 from deploy.scenario.generated import run_generated
 from deploy.scenario.invariants import INVARIANTS, Violation, judge
-from deploy.scenario.schema import InvariantSettings, ScenarioSpec
+from deploy.scenario.schema import (
+    Fault,
+    InvariantSettings,
+    OdometerFailure,
+    ScenarioSpec,
+    SensorDropout,
+    ShortenedAuthority,
+)
 from deploy.scenario.shrink import shrink
 from deploy.scenario.space import DEFAULT_SPACE, GeneratorSpace, SpaceFileError, load_space
 from tests.deploy.kpi_samples import sample_kpis
@@ -90,6 +97,46 @@ def test_the_legs_are_timed_from_the_plain_lspb(tmp_path: Path) -> None:
     # From ~219 m (the preamble's stop) to north at 550 m under 40 km/h: a short leg.
     expected = plain_lspb_time_s(550.0 - 219.0, 40.0 / 3.6)
     assert spec.journey.timing_points[0].arrival_time_s == pytest.approx(expected, abs=0.2)
+
+
+def test_outages_that_take_the_localisation_away_make_the_operator_engage_again() -> None:
+    """gen-1-122: the IMU out from 97.5 s, the odometer stuck at zero from 108.4 s; the
+    localisation was lost, the ATO-OB disengaged and braked to a standstill 900 m short of east,
+    and stood ready (RE) for the remote driver's engage until the run ended."""
+    space = load_space()
+    base = draw(space, 1, 122)
+    assert {f.kind for f in base.faults} == {"sensor_dropout", "odometer_failure"}
+    assert render(space, base).operator.reengage
+
+    def reengage(*faults: Fault) -> bool:
+        return render(space, replace(base, faults=faults)).operator.reengage
+
+    odometer = OdometerFailure(kind="odometer_failure", start_s=100.0, end_s=120.0)
+    gps = SensorDropout(kind="sensor_dropout", sensor="gps", start_s=110.0, end_s=150.0)
+    imu = SensorDropout(kind="sensor_dropout", sensor="imu", start_s=110.0, end_s=150.0)
+    later_imu = imu.model_copy(update={"start_s": 120.0})
+    dropout = SensorDropout(kind="sensor_dropout", sensor="odometer", start_s=140.0, end_s=160.0)
+    assert reengage(imu, dropout)  # no motion sensor: the filter's health is lost
+    assert not reengage(odometer, later_imu)  # one after the other
+    assert not reengage(imu, gps)  # the calibrated odometer carries the estimate
+    assert not reengage(odometer, gps)  # the IMU with its calibrated bias (gen-1-128: 24 s)
+    assert not reengage(odometer)
+
+
+def test_the_route_comes_back_once_the_train_stands_closed_up_on_the_truth() -> None:
+    """gen-1-149: the RBC gave the route back at ETCS's distance under 9 m, 13.7 m short of the
+    EoA on the truth (ETCS's odometry 5.4 m ahead); the condition is now the train's true
+    position within the invariant's bound of the EoA, as the invariant judges it."""
+    default = load_space()
+    strict = default.model_copy(
+        update={"invariants": default.invariants.model_copy(update={"max_eoa_stop_m": 7.0})}
+    )
+    for space in (default, strict):
+        spec = render(space, draw(space, 1, 149))
+        [shortened] = [f for f in spec.faults if isinstance(f, ShortenedAuthority)]
+        [route] = [a for a in spec.actions if a.do == "issue_ma"]
+        near = shortened.end_of_authority_m - space.invariants.max_eoa_stop_m
+        assert route.when == f"standstill and next_stop == tp2-east and position_m >= {near}"
 
 
 # -- (b) the space file ------------------------------------------------------------------------
