@@ -17,7 +17,13 @@ import numpy as np
 import numpy.typing as npt
 
 from onboard.adf.nmpc import NmpcController, NmpcReference, NmpcResult
-from onboard.adf.odp import MAX_ACCELERATION_MPS2, SPEED_UNDERREAD_SHARE, OdpPlan
+from onboard.adf.odp import (
+    MAX_ACCELERATION_MPS2,
+    SPEED_OVERREAD_SHARE,
+    SPEED_UNDERREAD_SHARE,
+    OdpPlan,
+)
+from onboard.adf.odp_energy import LIMIT_BRAKING_MPS2
 from onboard.plant.point_mass import CURVE_COEFFICIENT_M, PointMassParameters
 from protocol.units import GRAVITY_MPS2, MPS_PER_KMH
 
@@ -34,6 +40,13 @@ close, and its NLP, dominated by that error, does not converge (the ADF re-times
 train has fallen far behind)."""
 CATCH_UP_MPS2 = MAX_ACCELERATION_MPS2
 """The plans' highest acceleration: a train keeping up with its plan is never held back."""
+REFERENCE_PASSES = 4
+"""Passes of the position reference and the ceilings at most (one or two suffice but where
+the plan and the train lie on either side of a limit's change)."""
+CATCH_UP_BRAKING_MPS2 = LIMIT_BRAKING_MPS2
+"""The braking [m/s²] into a lower ceiling later in the horizon that the position reference's
+catch-up allows for, as the plans brake into a lower limit: a catch-up at each stage's own
+ceiling ran at a higher one up to the stage before a drop and asked to be past it at once."""
 ESTIMATE_MARGIN_MPS = 0.1 * MPS_PER_KMH
 """Each ceiling is held this much lower as well [m/s]: the fused speed's error beyond the
 odometer's calibration (a train catching up its reference runs on the ceiling)."""
@@ -80,17 +93,39 @@ class AutonomousDriving:
         measured ``distance_m``, the positions lead it by at most :data:`LEAD_M` plus what the
         ceilings let the train run."""
         positions, speeds = self._horizon(now_s)
-        targets = np.array(positions)
-        ceilings = self._ceilings(targets, speed_mps)
+        planned = np.array(positions)
+        targets, ceilings = planned, self._ceilings(planned, speed_mps)
         if distance_m is not None and speed_mps is not None:
-            catch_up = max(speed_mps, 0.0) + CATCH_UP_MPS2 * self._offsets_s
-            runnable = np.minimum(np.maximum(ceilings - CEILING_MARGIN_MPS, 0.0), catch_up)
-            targets = np.minimum(targets, distance_m + LEAD_M + np.cumsum(runnable) * self._step_s)
-            # The ceilings where the train is to be, as well as where the plan is.
-            ceilings = np.minimum(ceilings, self._ceilings(targets, speed_mps))
+            # The ceilings where the train is to be, as well as where the plan is, and positions
+            # it can run under those very ceilings: until neither moves (each pass lowers both).
+            for _ in range(REFERENCE_PASSES):
+                runnable = self._runnable_mps(ceilings, speed_mps)
+                lead = distance_m + LEAD_M + np.cumsum(runnable) * self._step_s
+                targets = np.minimum(planned, lead)
+                lower = np.minimum(ceilings, self._ceilings(targets, speed_mps))
+                if np.array_equal(lower, ceilings):
+                    break
+                ceilings = lower
         speeds_mps = np.minimum(np.array(speeds), np.maximum(ceilings - CEILING_MARGIN_MPS, 0.0))
         forces = [self._track_force_n(self.plan.chainage_m(float(d))) for d in targets]
         return NmpcReference(targets, speeds_mps, ceilings, np.array(forces))
+
+    def _runnable_mps(
+        self, ceilings: npt.NDArray[np.float64], speed_mps: float
+    ) -> npt.NDArray[np.float64]:
+        """The speeds [m/s] a train catching up runs at the horizon's stages: held under each
+        stage's ceiling as the speed reference is, braking at :data:`CATCH_UP_BRAKING_MPS2`
+        into every lower ceiling later in the horizon (at stage k, at most v_j + b (t_j − t_k)
+        for every j ≥ k), and accelerating at :data:`CATCH_UP_MPS2` from ``speed_mps`` and from
+        every lower speed earlier in it (at most v_j + a (t_k − t_j) for every j ≤ k)."""
+        held = np.maximum(ceilings - CEILING_MARGIN_MPS, 0.0)
+        braking = CATCH_UP_BRAKING_MPS2 * self._offsets_s
+        into = np.minimum.accumulate((held + braking)[::-1])[::-1] - braking
+        rising = CATCH_UP_MPS2 * self._offsets_s
+        runnable: npt.NDArray[np.float64] = np.minimum(
+            np.minimum.accumulate(into - rising) + rising, max(speed_mps, 0.0) + rising
+        )
+        return runnable
 
     def _horizon(self, now_s: float) -> tuple[list[float], list[float]]:
         """The plan's distances and speeds at the horizon's stages from ``now_s``, sampled once
@@ -104,17 +139,25 @@ class AutonomousDriving:
         self, positions: npt.NDArray[np.float64], speed_mps: float | None
     ) -> npt.NDArray[np.float64]:
         """Each stage's ceiling [m/s]: the lowest MRSP within a few metres of its position (the
-        train may run a little ahead of it), the permitted speed and the journey's cap, less
-        the measured speed's under-read share; with the measured ``speed_mps``, never below
+        train may run a little ahead of it) and the journey's cap less the measured speed's
+        under-read share, and the permitted speed less that share too, or less ETCS's own
+        over-read share where it lies under them; with the measured ``speed_mps``, never below
         what full braking reaches from it."""
         around = np.add.outer(positions, CEILING_WINDOW_M)
         origin = self.plan.start_chainage_m
         mrsp: npt.NDArray[np.float64] = self.plan.track_map.mrsp_ahead_mps(origin, around)
-        ceilings: npt.NDArray[np.float64] = np.minimum(mrsp.min(axis=1), self.permitted_speed_mps)
+        limits: npt.NDArray[np.float64] = mrsp.min(axis=1)
         if self.plan.cap_mps is not None:
-            ceilings = np.minimum(ceilings, self.plan.cap_mps)
-        # On the measured speed, which may read low by the odometer's tolerance.
-        ceilings = ceilings * (1.0 - SPEED_UNDERREAD_SHARE) - ESTIMATE_MARGIN_MPS
+            limits = np.minimum(limits, self.plan.cap_mps)
+        # On the measured speed, which may read low by the odometer's tolerance. Under the
+        # limits, the permitted speed is a braking curve's down to a target's speed, which ETCS
+        # supervises on its own speed, without CSM's margins: near the target it intervenes at
+        # any reading above it, and its windowed speed reads up to a pulse (0.26 km/h) high
+        # (docs/decisions.md, "Issue 18"). It is held by ETCS's over-read share there.
+        permitted = self.permitted_speed_mps
+        share = np.where(permitted < limits, SPEED_OVERREAD_SHARE, SPEED_UNDERREAD_SHARE)
+        ceilings = np.minimum(limits * (1.0 - SPEED_UNDERREAD_SHARE), permitted * (1.0 - share))
+        ceilings = ceilings - ESTIMATE_MARGIN_MPS
         if speed_mps is not None:
             # A ceiling the vehicle is already above (a permitted speed that drops at once, an
             # overshoot) it can meet only after braking: held at what full braking reaches.

@@ -136,6 +136,7 @@ class NmpcController:
         self.stats = NmpcStats()
         self._step = self._dynamics()
         problem, self._bounds = self._build()
+        self._upper_x: FloatArray = np.asarray(self._bounds["ubx"], dtype=float).ravel()
         # One NLP, two iteration caps: casadi fixes a solver's options when it is made.
         self._solver, self._cold_solver = (
             ca.nlpsol("nmpc", self.config.solver, problem, _solver_options(self.config, cap))
@@ -177,10 +178,10 @@ class NmpcController:
         step = self._step
         states = ca.SX.sym("X", STATE_SIZE, n + 1)
         increments = ca.SX.sym("dU", 1, n)
-        parameters = ca.SX.sym("P", STATE_SIZE + 4 * n)
+        parameters = ca.SX.sym("P", STATE_SIZE + 3 * n)
         s = STATE_SIZE
         p_ref, v_ref = parameters[s : s + n], parameters[s + n : s + 2 * n]
-        v_max, track = parameters[s + 2 * n : s + 3 * n], parameters[s + 3 * n :]
+        track = parameters[s + 2 * n :]
         cost: Any = 0
         constraints = [states[:, 0] - parameters[0:s]]
         lower = [0.0] * STATE_SIZE
@@ -189,11 +190,10 @@ class NmpcController:
             following = states[:, k + 1]
             constraints += [
                 following - step(states[:, k], increments[k], track[k]),
-                following[1] - v_max[k],
                 following[3] * following[1],
             ]
-            lower += [0.0] * STATE_SIZE + [-ca.inf, -ca.inf]
-            upper += [0.0] * STATE_SIZE + [0.0, m.max_traction_power_w / KN]
+            lower += [0.0] * STATE_SIZE + [-ca.inf]
+            upper += [0.0] * STATE_SIZE + [m.max_traction_power_w / KN]
             cost += (
                 c.weight_position * (following[0] - p_ref[k]) ** 2
                 + c.weight_speed * (following[1] - v_ref[k]) ** 2
@@ -220,6 +220,21 @@ class NmpcController:
         # Converted once: casadi converts Python lists element by element at every call.
         return problem, {key: ca.DM(values) for key, values in bounds.items()}
 
+    def _stage_bounds(self, reference: NmpcReference) -> dict[str, ca.DM]:
+        """The NLP's bounds with each stage's ceiling as the upper bound of its predicted speed.
+
+        The ceiling is a bound, not a constraint row ``v − v_max ≤ 0``: beside the speed's own
+        bounds such a row is a second, linearly dependent constraint on the same variable, and
+        qrqp (an active-set method without anti-cycling) then cycles between the two (enforces
+        one, drops the other for regularity) until its iteration cap wherever the optimum rides
+        the ceiling over many stages, and the SQP's step leaves the ceiling violated."""
+        n = self.config.horizon_steps
+        upper = self._upper_x.copy()
+        speeds = slice(STATE_SIZE + 1, STATE_SIZE * (n + 1), STATE_SIZE)
+        ceilings = np.minimum(reference.max_speed_mps, MAX_SPEED_MPS)
+        upper[speeds] = np.maximum(ceilings, self.config.min_predicted_speed_mps)
+        return dict(self._bounds, ubx=ca.DM(upper))
+
     def reset(self) -> None:
         """Forget the warm start and the previous plan (after a mode change)."""
         self._guess = None
@@ -245,10 +260,10 @@ class NmpcController:
                 state,
                 reference.position_m - position_m,
                 reference.speed_mps,
-                reference.max_speed_mps,
                 reference.track_force_n / KN,
             ]
         )
+        bounds = self._stage_bounds(reference)
         if self._jumped(reference):
             self._guess = None
         self._reference = reference
@@ -259,9 +274,9 @@ class NmpcController:
                 self.stats.cold_starts += 1
                 solver = self._cold_solver
             guess = self._initial_guess(state, reference.track_force_n / KN)
-            solution = solver(x0=guess, p=parameters, **self._bounds)
+            solution = solver(x0=guess, p=parameters, **bounds)
             success = bool(solver.stats()["success"])
-            if not success and self._feasible(solution):
+            if not success and self._feasible(solution, bounds):
                 self.stats.not_converged += 1
                 success = True
         except RuntimeError:
@@ -303,13 +318,12 @@ class NmpcController:
                 return True
         return False
 
-    def _feasible(self, solution: dict[str, Any]) -> bool:
-        """Whether a solution meets every constraint and bound within the feasibility
+    def _feasible(self, solution: dict[str, Any], b: dict[str, ca.DM]) -> bool:
+        """Whether a solution meets every constraint and bound ``b`` within the feasibility
         tolerance."""
         tolerance = self.config.feasibility_tolerance
         g = np.asarray(solution["g"], dtype=float).ravel()
         x = np.asarray(solution["x"], dtype=float).ravel()
-        b = self._bounds
         excess = max(
             float(np.max(np.asarray(b["lbg"]).ravel() - g)),
             float(np.max(g - np.asarray(b["ubg"]).ravel())),

@@ -29,6 +29,8 @@ from trackdb import TrackMap
 __all__ = [
     "InfeasibleLegError",
     "LegProfile",
+    "SPEED_OVERREAD_SHARE",
+    "SPEED_UNDERREAD_SHARE",
     "LspbSegment",
     "OdpLeg",
     "OdpPlan",
@@ -51,6 +53,15 @@ SPEED_UNDERREAD_SHARE = 0.006
 low by up to its calibration tolerance (0.6 %, three σ of the diameter error): a plan holds
 every ceiling, the MRSP and the journey's cap, that share under it, so that the true speed
 stays under the ceiling while the measured one tracks the reference."""
+
+
+SPEED_OVERREAD_SHARE = 0.02
+"""ETCS's speed is the wheels' and reads up to the odometer's diameter tolerance (2 %) high
+(``onboard.etcs.odometer``), and its windowed pulse count up to a pulse per window (0.26 km/h:
+1.3 % at 20 km/h). Up to a lower limit its target speed monitoring intervenes at any speed it
+reads above the limit once the max safe front end is some 20 m short of it, so a lower limit,
+and a permitted speed under the MRSP, are held that share under (instead of the ADF's own
+under-read share, :data:`SPEED_UNDERREAD_SHARE`, which it covers)."""
 
 
 def held_under(ceiling_mps: float, margin_mps: float) -> float:

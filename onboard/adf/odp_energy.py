@@ -46,6 +46,7 @@ from scipy.optimize import brentq, minimize_scalar
 from onboard.adf.energy import track_force_n
 from onboard.adf.odp import (
     MAX_ACCELERATION_MPS2,
+    SPEED_OVERREAD_SHARE,
     SPEED_UNDERREAD_SHARE,
     InfeasibleLegError,
     LegProfile,
@@ -101,12 +102,6 @@ distance since the last balise group ahead of the estimate; the planner brakes t
 MRSP_MARGIN_MPS = 0.2 * MPS_PER_KMH
 """The plan holds this far under the MRSP (not under the journey's cap), so that tracking
 errors of the controller under a model mismatch stay under the limit."""
-SPEED_OVERREAD_SHARE = 0.02
-"""ETCS's speed is the wheels' and reads up to the odometer's diameter tolerance (2 %) high
-(``onboard.etcs.odometer``). Up to a lower limit its target speed monitoring intervenes at any
-speed it reads above the limit once the max safe front end is some 20 m short of it, so the
-plan holds a lower limit that share under it (instead of the ADF's own under-read share,
-:data:`~onboard.adf.odp.SPEED_UNDERREAD_SHARE`, which it covers)."""
 
 
 @dataclass(frozen=True)

@@ -144,14 +144,27 @@ class LegReplanner:
         self, now_s: float, *, position_m: float, speed_mps: float
     ) -> OdpPlan | None:
         """The current leg under a changed MRSP (a TSR put in force or revoked), on its schedule
-        if it can be, else up to :data:`TSR_DELAYS_S` late."""
-        if self.progress.journey is None or self.fallback_active:
+        if it can be, else up to :data:`TSR_DELAYS_S` late. In the unattended fallback, the
+        fallback's stop (the next stop, or the one short of it for the EoA) under the new
+        limits: ETCS supervises them all the same (docs/decisions.md, "Issue 18")."""
+        if self.progress.journey is None:
             return None
         stop = self.progress.next_stop(position_m)
         if stop is None:
             return None
-        self.eoa_stop_m = None
         travelled = self.progress.travelled_m(position_m)
+        if self.fallback_active:
+            if self.eoa_stop_m is not None:
+                return self.replan(now_s, travelled, speed_mps, self.eoa_stop_m, arrival_s=None)
+            return self.replan(
+                now_s,
+                travelled,
+                speed_mps,
+                stop.distance_m,
+                arrival_s=None,
+                braking_mps2=MAX_BRAKING_MPS2,
+            )
+        self.eoa_stop_m = None
         for delay_s in (0.0, *TSR_DELAYS_S):
             plan = self.replan(
                 now_s, travelled, speed_mps, stop.distance_m, arrival_s=stop.arrival_s + delay_s
@@ -246,7 +259,7 @@ class LegReplanner:
         # Under the ETCS permitted speed by the plan's margin, as under the MRSP: a reference
         # on the NMPC's ceiling makes the NLP degenerate.
         cap = min(cap, self.permitted_speed_mps - MRSP_MARGIN_MPS)
-        journey_s = self.progress.journey_time_s(now_s)
+        depart_s = self._departure_s(now_s, travelled_m, speed_mps)
         braking = braking_mps2 or (
             AUTHORITY_BRAKING_MPS2 if arrival_s is None else MAX_BRAKING_MPS2
         )
@@ -258,7 +271,7 @@ class LegReplanner:
                 replanned = replan_from_state(
                     self.track_map,
                     self.model,
-                    now_s=journey_s,
+                    now_s=depart_s,
                     start_chainage_m=journey.start_chainage_m,
                     distance_m=travelled_m,
                     speed_mps=speed_mps,
@@ -282,6 +295,17 @@ class LegReplanner:
             track_map=self.track_map,
             cap_mps=plan.cap_mps,
         )
+
+    def _departure_s(self, now_s: float, travelled_m: float, speed_mps: float) -> float:
+        """When a leg replanned at ``now_s`` leaves [s from the journey's start]: now, or, for
+        a train standing at a stop before its departure (a TSR put in force as it arrived), at
+        that departure: the stop keeps its dwell, during which the ATO-OB holds the train. A
+        leg leaving at once ran its reference a dwell ahead of the train (gen-1-152)."""
+        journey_s = self.progress.journey_time_s(now_s)
+        standing = self.progress.stopped_at(self.progress.origin_m + travelled_m, speed_mps)
+        if standing is None:
+            return journey_s
+        return max(journey_s, self.progress.departure_s(standing))
 
     def _later_legs(self, plan: OdpPlan, stop_m: float, *, arrival_end_s: float) -> list[OdpLeg]:
         """The journey's legs after the stop at ``stop_m``; when the replanned leg arrives

@@ -7,6 +7,8 @@ import pytest
 from onboard.adf.function import DrivingFunction, NoJourneyError
 from onboard.adf.journey import plan_journey
 from onboard.adf.odp import InfeasibleLegError
+from onboard.etcs.braking import BrakingModel, Limit, Target, TargetKind
+from onboard.etcs.odometer import OdometerParameters
 from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.plant.point_mass import with_model_mismatch
 from protocol import messages as m
@@ -359,3 +361,106 @@ def test_a_train_far_behind_its_plan_is_replanned_from_where_it_is(ring: TrackMa
     assert stop is not None
     assert stop.timing_point_id == "east"
     assert abs(loop.plant.position_m - 1975.0) <= 0.5
+
+
+def test_a_tsr_put_in_force_during_the_fallback_stop_is_planned_for() -> None:
+    """The trackside lost, the train runs to its fallback stop (east) when a TSR comes into force
+    ahead (ETCS's link to the RBC is not the ATO session): the fallback's plan is redone under
+    it. Issue 18, gen-1-117: the fallback's plan ran on at 58 km/h into a 25 km/h TSR and met
+    ETCS's service brake."""
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    loop = Loop(ring, start_m=200.0)
+    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
+    loop.adf.start_journey(journey, 0.0, position_m=200.0)
+    loop.adf.engage(0.0)
+    loop.run(60.0)
+    loop.adf.stop_at_next_stopping_point(
+        loop.now, position_m=loop.plant.position_m, speed_mps=loop.plant.speed_mps
+    )
+    assert loop.adf.fallback_active
+    assert loop.plant.position_m < 900.0
+    ring.add_temporary_speed_restriction(
+        TemporarySpeedRestriction(id="tsr-1", start_m=1400.0, end_m=1600.0, speed_mps=20 / 3.6)
+    )
+    loop.adf.speed_limits_changed(
+        loop.now, position_m=loop.plant.position_m, speed_mps=loop.plant.speed_mps
+    )
+    assert loop.adf.fallback_active  # still the fallback: to its stop, unscheduled
+    plan = loop.adf.autonomous.plan  # type: ignore[union-attr]
+    samples = [plan.reference(loop.now + 0.5 * k) for k in range(1000)]
+    inside = [speed for distance, speed in samples if 1200.0 <= distance <= 1400.0]
+    assert inside
+    assert max(inside) <= 20 / 3.6
+    assert samples[-1] == pytest.approx((1775.0, 0.0), abs=1e-6)  # east, the fallback's stop
+
+
+def test_a_leg_replanned_while_the_train_stands_at_a_stop_leaves_after_its_dwell() -> None:
+    """A TSR comes into force on the next leg as the train stands at east, before east's
+    departure (320 s): the replanned leg leaves at the departure, not at once. Issue 18,
+    gen-1-152: the reference left a dwell (24 s) ahead of the train, which could not catch up
+    (ETCS's permitted speed under the MRSP up to the TSR)."""
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    adf = DrivingFunction(ring, URV_PARAMETERS)
+    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
+    adf.start_journey(journey, 0.0, position_m=200.0)
+    adf.engage(0.0)
+    east = journey.stops[0]
+    at_east = 200.0 + east.distance_m
+    adf.progress.update_served(at_east, speed_mps=0.0)  # arrived
+    assert adf.next_stop(at_east).timing_point_id == "south"  # type: ignore[union-attr]
+    ring.add_temporary_speed_restriction(
+        TemporarySpeedRestriction(id="tsr-2", start_m=2300.0, end_m=2500.0, speed_mps=20 / 3.6)
+    )
+    adf.speed_limits_changed(302.0, position_m=at_east, speed_mps=0.0)
+    plan = adf.autonomous.plan  # type: ignore[union-attr]
+    assert plan.legs[0].start_s == pytest.approx(adf.departure_s(east))
+    assert plan.reference(319.9) == pytest.approx((east.distance_m, 0.0))
+    assert plan.reference(330.0)[0] > east.distance_m + 1.0
+    assert plan.end_s == pytest.approx(journey.plan.end_s)  # the rest of the journey on time
+
+
+def test_behind_its_plan_the_train_keeps_under_a_target_speed_by_etcs_over_read() -> None:
+    """Issue 18, gen-1-137: a TSR of 20 km/h 59 m ahead of where the journey starts; the train
+    leaves 1.2 s after its reference and catches up at its ceiling. Up to the TSR ETCS's
+    permitted speed comes down to 20 km/h, and once its max-safe front end is a metre or two
+    short of the TSR its target speed monitoring brakes at any speed it reads above that: its
+    windowed speed reads up to a pulse per window high. The NMPC's ceiling from the permitted
+    speed is held ETCS's over-read share (2 %) under it: the train keeps under by more than
+    that pulse (it ran at 19.78 km/h, 0.6 % under, and ETCS braked)."""
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    tsr = TemporarySpeedRestriction(id="tsr-3", start_m=276.5, end_m=553.5, speed_mps=20 / 3.6)
+    ring.add_temporary_speed_restriction(tsr)
+    north = m.TimingPoint(
+        id="north",
+        position_m=550.0,
+        kind=m.TimingPointKind.STOPPING,
+        arrival_time_s=73.7,
+        end_of_journey=True,
+    )
+    profile = field_journey().model_copy(
+        update={"timing_points": (north,), "max_speed_mps": 32 / 3.6}
+    )
+    decrease = Target(TargetKind.SPEED_DECREASE, tsr.start_m, tsr.speed_mps)
+    limits = BrakingModel().target_limits(decrease, track_map=ring, from_m=0.0)
+    loop = Loop(ring, start_m=217.8)
+    journey = plan_journey(ring, URV_PARAMETERS, profile, start_chainage_m=217.8)
+    loop.adf.start_journey(journey, 0.0, position_m=217.8)
+    loop.adf.engage(0.0)
+    interval_m = 18.0  # ETCS's max-safe front end runs this far ahead (as in gen-1-137)
+    last_metres_kmh: list[float] = []
+    while loop.plant.position_m < tsr.start_m:
+        front_m = loop.plant.position_m + interval_m
+        # ETCS's permitted speed: the TSR's braking curve until the max-safe front end reaches
+        # it, the lowest MRSP under the train from there on.
+        permitted = min(ring.mrsp_mps(loop.plant.position_m), ring.mrsp_mps(front_m))
+        if front_m < tsr.start_m:
+            curve = limits.speed_mps(Limit.PERMITTED, tsr.start_m - front_m)
+            permitted = min(permitted, max(curve, tsr.speed_mps))
+        loop.adf.set_etcs_limits(permitted, None, position_m=loop.plant.position_m)
+        loop.run(CONTROL_S, service_brake=loop.now < 1.2)
+        if 0.0 < tsr.start_m - (loop.plant.position_m + interval_m) <= 5.0:
+            last_metres_kmh.append(loop.plant.speed_mps * 3.6)
+        assert loop.now < 60.0
+    assert last_metres_kmh
+    pulse_kmh = OdometerParameters().speed_resolution_mps * 3.6  # 0.26 km/h
+    assert max(last_metres_kmh) <= 20.0 - pulse_kmh

@@ -6,13 +6,15 @@ import numpy as np
 import pytest
 
 from onboard.adf.energy import optimal_leg, plan_traction_energy_j
-from onboard.adf.odp import InfeasibleLegError, LspbSegment, OdpLeg, OdpPlan, plan_legs
-from onboard.adf.odp_energy import (
+from onboard.adf.odp import (
     SPEED_OVERREAD_SHARE,
-    optimise_leg,
-    plan_energy_legs,
-    replan_from_state,
+    InfeasibleLegError,
+    LspbSegment,
+    OdpLeg,
+    OdpPlan,
+    plan_legs,
 )
+from onboard.adf.odp_energy import optimise_leg, plan_energy_legs, replan_from_state
 from onboard.etcs.braking import BrakingModel, Limit, Target, TargetKind
 from onboard.plant import URV_PARAMETERS
 from trackdb import LineBuilder, TemporarySpeedRestriction, TrackMap, load_seed_line

@@ -182,3 +182,78 @@ def test_a_ceiling_the_train_is_already_above_is_met_by_braking_not_failed() -> 
     assert driving.last_result is not None
     assert driving.last_result.success
     assert force < 0.0
+
+
+def test_riding_a_ceiling_under_a_position_reference_converges() -> None:
+    """Issue 18, gen-1-83: under ETCS's permitted speed for a 35 km/h TSR, while the plan
+    leaves the TSR at 1 m/s², the position reference (2 m ahead, then running at the ceiling
+    less its margin) asks for more than the ceiling allows, and the optimum rides the ceiling
+    for tens of stages. With the ceiling a constraint row beside the speed's own bound, qrqp
+    cycled between the two to its iteration cap and the SQP's iterates were used over the
+    ceiling (88 of 100 solves not converged) or, more than 1 cm/s over it, failed (1). As the
+    speed's bound it holds: every solve converges."""
+    kmh = 1.0 / 3.6
+    ceiling = 35.0 * kmh * (1.0 - 0.006) - 0.1 * kmh
+    held, cruise = ceiling - 0.1 * kmh, 34.1 * kmh
+    gradient = 2.0  # ‰: 294 N on the URV, as in the run
+    track = URV_PARAMETERS.mass_kg * 9.81 * np.sin(np.arctan(gradient / 1000.0))
+    times = np.arange(1, N + 1) * DT
+    controller = NmpcController(URV_PARAMETERS)
+    plant = PointMassModel(URV_PARAMETERS, speed_mps=cruise)
+    plan_m, top_mps = 1.5, 0.0
+    for k in range(100):
+        leaves_s = max(12.0 - k * DT, 0.0)  # the plan leaves the TSR then
+        plan_mps = cruise + np.maximum(times - leaves_s, 0.0)
+        plan = plan_m + np.cumsum(plan_mps) * DT
+        reference = NmpcReference(
+            np.minimum(plan, plant.position_m + 2.0 + held * times),
+            np.minimum(plan_mps, held),
+            np.full(N, ceiling),
+            np.full(N, track),
+        )
+        result = controller.solve(
+            position_m=plant.position_m,
+            speed_mps=plant.speed_mps,
+            applied_force_n=plant.applied_force_n,
+            reference=reference,
+        )
+        for _ in range(20):
+            plant.step(0.01, result.force_n, gradient_permille=gradient)
+        plan_m += plan_mps[0] * DT
+        top_mps = max(top_mps, plant.speed_mps)
+    assert controller.stats.failures == 0
+    assert controller.stats.not_converged == 0
+    assert top_mps <= ceiling + 1e-3
+
+
+def test_catching_up_towards_a_lower_ceiling_brakes_into_it_without_failing() -> None:
+    """Issue 18, gen-1-152: a train standing 150 m behind its plan, which runs at 18.4 km/h
+    55 m before a 20 km/h TSR (the ceilings are taken where the plan is too). The catch-up's
+    position reference ran at each stage's own ceiling (the cap) up to the stage before the
+    TSR's and asked to be past that drop at once, up to 6 m/s faster than braking at 0.5 m/s²
+    into it allows: the train reached 29 km/h, and the NLP, its optimum on the braking limit,
+    failed 13 times from 4.6 s on. The reference now brakes into every lower ceiling."""
+    line = TrackMap(LineBuilder(id="flat", name="Flat").straight(3000.0, speed_kmh=80).build())
+    line.add_temporary_speed_restriction(
+        TemporarySpeedRestriction(id="tsr", start_m=1200.0, end_m=1400.0, speed_mps=20 / 3.6)
+    )
+    plan = plan_legs(line, start_chainage_m=0.0, stops=[(2500.0, 500.0, 500.0)], cap_mps=48 / 3.6)
+    start_s = next(t for t in np.arange(0.0, 500.0, DT) if plan.reference(float(t))[0] > 1145.0)
+    origin_m = plan.reference(float(start_s))[0] - 150.0
+    driving = AutonomousDriving(plan, URV_PARAMETERS, NmpcController(URV_PARAMETERS))
+    plant = PointMassModel(URV_PARAMETERS)
+    braking = 0.5 * np.arange(1, N + 1) * DT
+    for k in range(150):
+        now_s = float(start_s) + k * DT
+        distance_m, speed_mps = origin_m + plant.position_m, plant.speed_mps
+        reference = driving.reference(now_s, speed_mps=speed_mps, distance_m=distance_m)
+        runnable = np.minimum.accumulate((reference.max_speed_mps + braking)[::-1])[::-1]
+        implied_mps = np.diff(reference.position_m) / DT
+        assert np.all(implied_mps <= (runnable - braking)[1:] + 1e-9)
+        force = driving.force_n(
+            now_s, distance_m=distance_m, speed_mps=speed_mps, applied_force_n=plant.applied_force_n
+        )
+        for _ in range(20):
+            plant.step(0.01, force)
+    assert driving.controller.stats.failures == 0
+    assert plant.speed_mps <= 20 / 3.6

@@ -161,3 +161,40 @@ def test_an_rbc_speed_restriction_lowers_the_mrsp_until_revoked() -> None:
     assert track_map.mrsp_mps(1200.0) == pytest.approx(before, abs=1e-9)
     with pytest.raises(ValueError, match="line"):
         onboard.receive_speed_restriction(tsr.model_copy(update={"line_id": "other"}), 30.0)
+
+
+@pytest.mark.parametrize("valid", [True, False])
+def test_the_adf_locates_the_eoa_from_the_fused_position_not_from_etcs_odometry(
+    valid: bool,
+) -> None:
+    """ETCS's distance to the EoA is measured from its estimated front end, which drifts with
+    its odometry (5.4 m ahead of the truth, 1.5 km past a balise group, in a generated run);
+    the ADF stops for the EoA, a place on the track, measured from its own localisation. Here
+    ETCS reads 6 m ahead of the fused position: the ADF's EoA is ETCS's location of it, not
+    6 m short. Without a valid localisation ETCS's distance is what there is."""
+    line = TrackMap(load_seed_line("milano-bologna"))
+    onboard = stack(line, position_m=1000.0)
+    locator = onboard.locator
+    assert isinstance(locator, StandingLocator)
+    locator.position_m, locator.localisation_valid = 994.0, valid
+    extent = m.MovementAuthorityExtent(
+        start_m=1000.0, end_of_authority_m=1400.0, danger_point_m=200.0
+    )
+    message = m.MovementAuthorityMessage(
+        vehicle_id="URV1",
+        ma_id=1,
+        change=m.MovementAuthorityChange.ISSUED,
+        issued_at_s=0.0,
+        line_id=line.line.id,
+        line_version=line.version,
+        authority=extent,
+    )
+    onboard.step_etcs(0.0)
+    assert onboard.receive_movement_authority(message, 0.1) == "new"
+    onboard.step_etcs(0.2)
+    onboard.step_control(0.2)
+    output = onboard.etcs.output
+    assert output is not None
+    assert output.end_of_authority_distance_m == pytest.approx(400.0, abs=0.5)
+    eoa_at_m = onboard.driving.replanner.eoa_at_m
+    assert eoa_at_m == pytest.approx(1400.0 if valid else 1394.0, abs=0.5)
