@@ -11,8 +11,9 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 
+from deploy.cli_pki import pki_app
 from deploy.cli_sfa import sfa_app
-from protocol import DEFAULT_ROUTER_ENDPOINT, ZenohSettings
+from protocol import DEFAULT_ROUTER_ENDPOINT, TlsFiles, ZenohSettings
 from protocol.router import run_router
 
 __all__ = ["app"]
@@ -32,8 +33,30 @@ app.add_typer(trackdb_app, name="trackdb")
 vc_app = typer.Typer(help="Vital Control tools.", no_args_is_help=True)
 app.add_typer(vc_app, name="vc")
 app.add_typer(sfa_app, name="sfa")
+app.add_typer(pki_app, name="pki")
 
 ZenohOption = Annotated[str, typer.Option("--zenoh", help="Zenoh router endpoint to connect to.")]
+PkiOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--pki",
+        help="The deployment's PKI directory (ato pki): TLS with mutual authentication, with "
+        "this party's certificate. Without it the links are plain TCP: insecure, for debugging.",
+    ),
+]
+
+
+def _warn_insecure(part: str, pki: Path | None) -> None:
+    from rich.console import Console
+
+    if pki is None:
+        Console(stderr=True).print(
+            f"[bold red]INSECURE: {part}: plain TCP links, no authentication, no access "
+            "control; anyone who reaches the endpoint can command the trains. Debugging only."
+            "[/bold red]"
+        )
+
+
 DatabaseOption = Annotated[
     str | None,
     typer.Option(
@@ -59,15 +82,42 @@ def router(
     connect: Annotated[
         list[str] | None, typer.Option("--connect", help="Another router to join (repeatable).")
     ] = None,
+    pki: PkiOption = None,
+    name: Annotated[str, typer.Option("--name", help="Its certificate's name.")] = "router",
+    vehicle: Annotated[
+        list[str] | None, typer.Option("--vehicle", help="A vehicle it admits (repeatable).")
+    ] = None,
+    trackside: Annotated[
+        list[str] | None,
+        typer.Option("--trackside", help="A trackside instance it admits (repeatable)."),
+    ] = None,
+    peer_router: Annotated[
+        list[str] | None,
+        typer.Option("--peer-router", help="Another router's certificate name (repeatable)."),
+    ] = None,
     verbose: bool = False,
 ) -> None:
-    """Run a Zenoh router (default tcp/127.0.0.1:7447)."""
+    """Run a Zenoh router (default tcp/127.0.0.1:7447; with --pki, TLS and access control)."""
     from deploy.processes import stop_on_signals
+    from protocol.access import access_control
 
     _logging(verbose)
+    _warn_insecure("ato router", pki)
+    tls = None if pki is None else TlsFiles.of(pki, name)
+    rules = None
+    if pki is not None:
+        rules = access_control(
+            vehicles=vehicle or [], tracksides=trackside or ["ts1"], routers=peer_router or []
+        )
     stop = threading.Event()
     with stop_on_signals(stop):
-        run_router(stop, listen=listen or [DEFAULT_ROUTER_ENDPOINT], connect=connect or [])
+        run_router(
+            stop,
+            listen=listen or [DEFAULT_ROUTER_ENDPOINT],
+            connect=connect or [],
+            tls=tls,
+            access_control=rules,
+        )
 
 
 @app.command()
@@ -78,6 +128,7 @@ def trackside(
     database: Annotated[
         str | None, typer.Option("--database", help="SQLAlchemy URL (default: ATO_DATABASE_URL)")
     ] = None,
+    pki: PkiOption = None,
     verbose: bool = False,
 ) -> None:
     """Run the ATO-TS web service."""
@@ -85,7 +136,8 @@ def trackside(
     from trackside.main import main
 
     _logging(verbose)
-    overrides: dict[str, object] = {"zenoh_connect": (zenoh,)}
+    _warn_insecure("ato trackside", pki)
+    overrides: dict[str, object] = {"zenoh_connect": (zenoh,), "zenoh_pki_dir": pki}
     if database is not None:
         overrides["database_url"] = database
     main(Settings(**overrides), host=host, port=port)  # type: ignore[arg-type]
@@ -120,12 +172,15 @@ def onboard(
     no_vc_datalog: Annotated[
         bool, typer.Option("--no-vc-datalog", help="Do not record the VC's datalog.")
     ] = False,
+    pki: PkiOption = None,
     verbose: bool = False,
 ) -> None:
     """Run one ATO-OB process."""
     from deploy.processes import run_onboard, stop_on_signals
 
     _logging(verbose)
+    _warn_insecure("ato onboard", pki)
+    tls = None if pki is None else TlsFiles.of(pki, vehicle)
     if speed <= 0:
         raise typer.BadParameter("--speed must be positive")
     if fidelity not in ("point_mass", "bogie"):
@@ -135,7 +190,7 @@ def onboard(
     with stop_on_signals(stop):
         run_onboard(
             vehicle,
-            zenoh=ZenohSettings(connect=(zenoh,)),
+            zenoh=ZenohSettings(connect=(zenoh,), tls=tls),
             line_id=line,
             speed_factor=speed,
             stop=stop,
@@ -159,8 +214,18 @@ def up(
     simulated_operators: Annotated[
         bool, typer.Option(help="The simulated operator answers every vehicle's VC requests.")
     ] = False,
+    insecure: Annotated[
+        bool,
+        typer.Option(
+            "--insecure",
+            help="Plain TCP links, no certificates, no access control: debugging only.",
+        ),
+    ] = False,
 ) -> None:
-    """Router, trackside and N onboard processes, each its own process, until Ctrl-C."""
+    """Router, trackside and N onboard processes, each its own process, until Ctrl-C.
+
+    The Zenoh links are TLS with mutual authentication and the router's access control, with
+    certificates of a CA kept in DATA_DIR/pki (made on the first start)."""
     from deploy.processes import stop_on_signals
     from deploy.up import UpPlan, run_up
 
@@ -174,6 +239,7 @@ def up(
         database=database,
         speed=speed,
         simulated_operators=simulated_operators,
+        insecure=insecure,
     )
     with stop_on_signals(stop):
         code = run_up(plan, stop, out=lambda text: print(text, flush=True))
@@ -226,12 +292,20 @@ def run_scenario(
     report: Annotated[
         Path | None, typer.Option(help="Write kpis.json, telemetry.npz and report.html here.")
     ] = None,
+    insecure: Annotated[
+        bool,
+        typer.Option("--insecure", help="Plain TCP between trackside and onboard: debugging only."),
+    ] = False,
 ) -> None:
     """Run one scenario with trackside, onboard and operator in this process; exit 0 iff every
-    expectation holds."""
+    expectation holds. The trackside and the onboard talk over TLS with certificates of a CA
+    made for the run, the trackside enforcing the access control."""
     from deploy.scenario.console import run_from_cli
 
-    raise typer.Exit(run_from_cli(scenario, fast=fast, speed=speed, seed=seed, report=report))
+    _warn_insecure("ato run", None if insecure else Path())
+    raise typer.Exit(
+        run_from_cli(scenario, fast=fast, speed=speed, seed=seed, report=report, insecure=insecure)
+    )
 
 
 # The generated campaign's options (``ato campaign --generate``), named so that the command's

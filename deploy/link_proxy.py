@@ -84,8 +84,17 @@ class LinkStats:
 class LinkProxy:
     """A TCP forwarder from ``host:port`` to ``target`` whose link can be cut and restored."""
 
-    def __init__(self, target: tuple[str, int], *, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(
+        self,
+        target: tuple[str, int],
+        *,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        scheme: str = "tcp",
+    ) -> None:
         self.target = target
+        self.scheme = scheme
+        """The Zenoh link's scheme: ``tls`` links pass through as bytes, as ``tcp`` ones."""
         self._bind = (host, port)
         self._address: tuple[str, int] | None = None
         self._child: ChildProcess | None = None
@@ -94,12 +103,12 @@ class LinkProxy:
 
     @classmethod
     def to_endpoint(cls, endpoint: str) -> LinkProxy:
-        """A proxy in front of a Zenoh TCP endpoint such as ``tcp/127.0.0.1:7447``."""
+        """A proxy in front of a Zenoh TCP or TLS endpoint such as ``tls/127.0.0.1:7447``."""
         protocol, _, address = endpoint.partition("/")
         host, _, port = address.rpartition(":")
-        if protocol != "tcp" or not host or not port.isdigit():
-            raise ValueError(f"not a tcp/HOST:PORT endpoint: {endpoint!r}")
-        return cls((host.removeprefix("[").removesuffix("]"), int(port)))
+        if protocol not in ("tcp", "tls") or not host or not port.isdigit():
+            raise ValueError(f"not a tcp/ or tls/HOST:PORT endpoint: {endpoint!r}")
+        return cls((host.removeprefix("[").removesuffix("]"), int(port)), scheme=protocol)
 
     # -- life cycle ----------------------------------------------------------------------------
 
@@ -166,7 +175,7 @@ class LinkProxy:
     def endpoint(self) -> str:
         """The Zenoh endpoint to connect to instead of the target's."""
         host, port = self.address
-        return f"tcp/{host}:{port}"
+        return f"{self.scheme}/{host}:{port}"
 
     @property
     def up(self) -> bool:

@@ -9,8 +9,10 @@ kernel if this process dies without cleaning up (``PR_SET_PDEATHSIG``), so nothi
 
 The admin account comes from ``ATO_ADMIN_USER`` / ``ATO_ADMIN_PASSWORD`` when set; otherwise an
 ``admin`` account with a random password is created, printed, and written to
-``DATA_DIR/admin-password`` (mode 0600). Many machines: see docs/deployment.md. The children are
-supervised by :class:`deploy.processes.ChildProcess`.
+``DATA_DIR/admin-password`` (mode 0600). The Zenoh links are TLS with mutual authentication and
+the router's access control, with the certificates of ``DATA_DIR/pki`` (made on the first
+start; ``--insecure`` for plain TCP, debugging only). Many machines: see docs/deployment.md.
+The children are supervised by :class:`deploy.processes.ChildProcess`.
 """
 
 from __future__ import annotations
@@ -24,11 +26,14 @@ from pathlib import Path
 
 import httpx
 
+from deploy.pki import deployment_pki
 from deploy.ports import free_tcp_port
 from deploy.processes import ChildError, ChildProcess, accepts_connections, ato_command, wait_ready
 
 __all__ = ["UpError", "UpPlan", "Fleet", "run_up"]
 
+TRACKSIDE_NAME = "ts1"
+"""The trackside's instance id (``trackside.config.Settings.instance_id``'s default)."""
 HEALTH_TIMEOUT_S = 60.0
 STOP_GRACE_S = 5.0
 
@@ -53,9 +58,32 @@ class UpPlan:
     fidelity: str = "point_mass"
     simulated_operators: bool = False
     """The trackside's simulated operator answers every vehicle's VC requests (unattended)."""
+    insecure: bool = False
+    """Plain TCP links without certificates or access control (debugging only); by default the
+    links are TLS with the certificates of ``data_dir/pki``, the router's ACL admitting the
+    trackside ``ts1`` and the plan's vehicles (docs/security.md)."""
+
+    @property
+    def pki_dir(self) -> Path:
+        return self.data_dir / "pki"
 
     def vehicle_ids(self) -> list[str]:
         return [f"URV{i}" for i in range(1, self.vehicles + 1)]
+
+
+def _security_options(plan: UpPlan) -> list[str]:
+    """``--pki DIR`` for every part, the plan's PKI made or completed; none when insecure."""
+    if plan.insecure:
+        return []
+    pki = deployment_pki(plan.pki_dir, vehicles=plan.vehicle_ids(), tracksides=[TRACKSIDE_NAME])
+    return ["--pki", str(pki)]
+
+
+def _router_part(plan: UpPlan, endpoint: str, security: list[str], log: Path) -> ChildProcess:
+    """The router, admitting the trackside and the plan's vehicles when secure."""
+    admitted = [] if plan.insecure else ["--trackside", TRACKSIDE_NAME]
+    admitted += [f"--vehicle={vehicle}" for vehicle in plan.vehicle_ids()]
+    return _part("router", ato_command("router", "--listen", endpoint, *security, *admitted), log)
 
 
 def _part(
@@ -87,7 +115,8 @@ class Fleet:
     def plan_parts(cls, plan: UpPlan) -> Fleet:
         router_port = plan.router_port or free_tcp_port()
         port = plan.port or free_tcp_port()
-        endpoint = f"tcp/127.0.0.1:{router_port}"
+        endpoint = f"{'tcp' if plan.insecure else 'tls'}/127.0.0.1:{router_port}"
+        security = _security_options(plan)
         logs = plan.data_dir / "logs"
         user = os.environ.get("ATO_ADMIN_USER") or "admin"
         password = os.environ.get("ATO_ADMIN_PASSWORD") or secrets.token_urlsafe(12)
@@ -96,9 +125,7 @@ class Fleet:
             env["ATO_SIMULATED_OPERATORS"] = ",".join(plan.vehicle_ids())
         database = plan.database or f"sqlite:///{(plan.data_dir / 'trackside.db').resolve()}"
         fleet = cls(plan, endpoint, f"http://{plan.host}:{port}", (user, password))
-        fleet.parts.append(
-            _part("router", ato_command("router", "--listen", endpoint), logs / "router.log")
-        )
+        fleet.parts.append(_router_part(plan, endpoint, security, logs / "router.log"))
         fleet.parts.append(
             _part(
                 "trackside",
@@ -112,6 +139,7 @@ class Fleet:
                     endpoint,
                     "--database",
                     database,
+                    *security,
                 ),
                 logs / "trackside.log",
                 env=env,
@@ -135,6 +163,7 @@ class Fleet:
                         plan.fidelity,
                         "--vc-datalog",
                         str(plan.data_dir / "vc" / f"{vehicle}.jsonl"),
+                        *security,
                     ),
                     logs / f"onboard-{vehicle}.log",
                 )

@@ -34,6 +34,7 @@ from protocol.bus import (
 from protocol.registry import TOPICS, Delivery, Direction, QueryTopic, RegistryTopic, Topic
 from protocol.zenoh_config import (
     DEFAULT_ROUTER_ENDPOINT,
+    TlsFiles,
     ZenohSettings,
     open_session,
     zenoh_config,
@@ -57,6 +58,7 @@ __all__ = [
     "RequestTimeoutError",
     "Topic",
     "TopicMonitor",
+    "TlsFiles",
     "TopicStats",
     "TransportError",
     "TruncatedDatagramError",

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import logging
 import threading
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
-from protocol.zenoh_config import DEFAULT_ROUTER_ENDPOINT, ZenohSettings, open_session
+from protocol.zenoh_config import DEFAULT_ROUTER_ENDPOINT, TlsFiles, ZenohSettings, open_session
 
 __all__ = ["run_router"]
 
@@ -23,6 +24,8 @@ def run_router(
     listen: Sequence[str] = (DEFAULT_ROUTER_ENDPOINT,),
     connect: Sequence[str] = (),
     ready: threading.Event | None = None,
+    tls: TlsFiles | None = None,
+    access_control: Mapping[str, Any] | None = None,
 ) -> None:
     """Run a Zenoh router until ``stop`` is set.
 
@@ -36,8 +39,16 @@ def run_router(
         Other routers to join, for multi-machine set-ups.
     ready
         Set once the router listens.
+    tls, access_control
+        The router's TLS material and its access control (``protocol.access``).
     """
-    settings = ZenohSettings(mode="router", listen=tuple(listen), connect=tuple(connect))
+    settings = ZenohSettings(
+        mode="router",
+        listen=tuple(listen),
+        connect=tuple(connect),
+        tls=tls,
+        access_control=access_control,
+    )
     with open_session(settings) as session:
         _log.info("zenoh router %s listening on %s", session.zid(), ", ".join(listen))
         if ready is not None:

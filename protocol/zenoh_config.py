@@ -16,16 +16,23 @@ from __future__ import annotations
 import json
 import logging
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Literal
+from pathlib import Path
+from typing import Any, Literal
 
 import zenoh
 
 from protocol._exceptions import TransportError
 
-__all__ = ["DEFAULT_ROUTER_ENDPOINT", "ZenohSettings", "open_session", "zenoh_config"]
+__all__ = [
+    "DEFAULT_ROUTER_ENDPOINT",
+    "TlsFiles",
+    "ZenohSettings",
+    "open_session",
+    "zenoh_config",
+]
 
 DEFAULT_ROUTER_ENDPOINT = "tcp/127.0.0.1:7447"
 MAX_LEASE_MS = 1000
@@ -36,6 +43,34 @@ Mode = Literal["peer", "client", "router"]
 _log = logging.getLogger(__name__)
 
 
+@dataclass(frozen=True)
+class TlsFiles:
+    """A party's TLS material (PEM files): the deployment's CA, its certificate and its key.
+
+    With them every link is TLS with mutual authentication: the party presents its certificate
+    whether it listens or connects, and accepts only peers whose certificate the CA signed
+    (``ato pki``, docs/security.md)."""
+
+    ca: str
+    certificate: str
+    key: str
+
+    @classmethod
+    def of(cls, directory: str | Path, name: str) -> TlsFiles:
+        """Party ``name``'s files in a deployment's PKI directory: ``ca.pem``, ``NAME.pem``
+        and ``NAME.key`` (as ``ato pki issue`` writes them); each must exist."""
+        directory = Path(directory)
+        files = cls(
+            ca=str(directory / "ca.pem"),
+            certificate=str(directory / f"{name}.pem"),
+            key=str(directory / f"{name}.key"),
+        )
+        for path in (files.ca, files.certificate, files.key):
+            if not Path(path).is_file():
+                raise TransportError(f"no {path}: issue {name!r} with `ato pki issue {directory}`")
+        return files
+
+
 @dataclass(frozen=True, kw_only=True)
 class ZenohSettings:
     """What a process needs to join the Zenoh network."""
@@ -44,10 +79,18 @@ class ZenohSettings:
     connect: tuple[str, ...] = (DEFAULT_ROUTER_ENDPOINT,)
     listen: tuple[str, ...] = ()
     lease_ms: int = MAX_LEASE_MS
+    tls: TlsFiles | None = None
+    access_control: Mapping[str, Any] | None = None
+    """A router's ``access_control`` section (``protocol.access``); None: none."""
 
     def config(self) -> zenoh.Config:
         return zenoh_config(
-            mode=self.mode, connect=self.connect, listen=self.listen, lease_ms=self.lease_ms
+            mode=self.mode,
+            connect=self.connect,
+            listen=self.listen,
+            lease_ms=self.lease_ms,
+            tls=self.tls,
+            access_control=self.access_control,
         )
 
 
@@ -57,6 +100,8 @@ def zenoh_config(
     connect: Sequence[str] = (),
     listen: Sequence[str] = (),
     lease_ms: int = MAX_LEASE_MS,
+    tls: TlsFiles | None = None,
+    access_control: Mapping[str, Any] | None = None,
 ) -> zenoh.Config:
     """A Zenoh configuration with explicit endpoints and no scouting.
 
@@ -68,6 +113,11 @@ def zenoh_config(
         Endpoints such as ``tcp/127.0.0.1:7447``.
     lease_ms
         Link lease [ms], at most 1000; keep-alives go four times per lease.
+    tls
+        The party's TLS material: every endpoint must then be ``tls/``, and links are mutually
+        authenticated. Without it endpoints must be ``tcp/`` (insecure: for debugging only).
+    access_control
+        The ``access_control`` section of a router's configuration.
     """
     if not 0 < lease_ms <= MAX_LEASE_MS:
         raise ValueError(f"link lease must be in (0, {MAX_LEASE_MS}] ms, got {lease_ms}")
@@ -76,7 +126,13 @@ def zenoh_config(
     for endpoint in (*connect, *listen):
         if "/" not in endpoint:
             raise ValueError(f"endpoint {endpoint!r} lacks a protocol, as in tcp/127.0.0.1:7447")
-    document = {
+        scheme = endpoint.split("/", 1)[0]
+        if (scheme == "tls") != (tls is not None):
+            raise ValueError(
+                f"endpoint {endpoint!r}: tls/ endpoints need TLS files, and TLS files need "
+                "tls/ endpoints"
+            )
+    document: dict[str, Any] = {
         "mode": mode,
         "connect": {"endpoints": list(connect)},
         "listen": {"endpoints": list(listen)},
@@ -84,10 +140,28 @@ def zenoh_config(
         "transport": {"link": {"tx": {"lease": lease_ms, "keep_alive": 4}}},
         "adminspace": {"enabled": mode == "router"},
     }
+    if tls is not None:
+        document["transport"]["link"]["tls"] = _tls_section(tls)
+    if access_control is not None:
+        document["access_control"] = dict(access_control)
     try:
         return zenoh.Config.from_json5(json.dumps(document))
     except zenoh.ZError as exc:
         raise TransportError(f"invalid Zenoh configuration: {exc}") from exc
+
+
+def _tls_section(tls: TlsFiles) -> dict[str, Any]:
+    """Mutual authentication: the party's certificate whether it listens or connects, the
+    peer's checked against the CA, and a listener's name against the endpoint's host."""
+    return {
+        "root_ca_certificate": tls.ca,
+        "enable_mtls": True,
+        "listen_certificate": tls.certificate,
+        "listen_private_key": tls.key,
+        "connect_certificate": tls.certificate,
+        "connect_private_key": tls.key,
+        "verify_name_on_connect": True,
+    }
 
 
 @contextmanager

@@ -8,7 +8,7 @@ from typing import Annotated, Any, Literal
 from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
-from protocol import DEFAULT_ROUTER_ENDPOINT, ZenohSettings
+from protocol import DEFAULT_ROUTER_ENDPOINT, TlsFiles, ZenohSettings
 from protocol.messages import OperatorRequestKind
 
 __all__ = ["DEFAULT_WEBUI_DIR", "Settings"]
@@ -26,6 +26,11 @@ class Settings(BaseSettings):
     zenoh_mode: Literal["peer", "client"] = "client"
     zenoh_connect: tuple[str, ...] = (DEFAULT_ROUTER_ENDPOINT,)
     zenoh_listen: tuple[str, ...] = ()
+    zenoh_pki_dir: Path | None = Field(
+        default=None,
+        description="The deployment's PKI directory (ato pki): TLS with the certificate named "
+        "after instance_id; None only for an insecure, debugging set-up",
+    )
     admin_user: str | None = None
     admin_password: SecretStr | None = None
     token_ttl_s: float = Field(default=12 * 3600.0, gt=0, description="Bearer token life [s]")
@@ -76,6 +81,8 @@ class Settings(BaseSettings):
         return value
 
     def zenoh(self) -> ZenohSettings:
+        pki = self.zenoh_pki_dir
+        tls = None if pki is None else TlsFiles.of(pki, self.instance_id)
         return ZenohSettings(
-            mode=self.zenoh_mode, connect=self.zenoh_connect, listen=self.zenoh_listen
+            mode=self.zenoh_mode, connect=self.zenoh_connect, listen=self.zenoh_listen, tls=tls
         )

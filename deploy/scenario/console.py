@@ -24,7 +24,13 @@ __all__ = ["campaign_from_cli", "run_from_cli", "summary_table"]
 
 
 def run_from_cli(
-    scenario: str, *, fast: bool, speed: float, seed: int | None, report: Path | None
+    scenario: str,
+    *,
+    fast: bool,
+    speed: float,
+    seed: int | None,
+    report: Path | None,
+    insecure: bool = False,
 ) -> int:
     """Run and print; the exit status: 0 passed, 1 an expectation failed, 2 could not run."""
     console = Console(stderr=True)
@@ -33,7 +39,7 @@ def run_from_cli(
     except ScenarioFileError as exc:
         console.print(f"[red]{exc}[/red]")
         return 2
-    options = RunOptions(fast=fast, speed=speed, seed=seed, report_dir=report)
+    options = RunOptions(fast=fast, speed=speed, seed=seed, report_dir=report, insecure=insecure)
     columns = (
         TextColumn("[bold]{task.description}"),
         BarColumn(),

@@ -50,6 +50,10 @@ class RunOptions:
     seed: int | None = None
     """Overrides the scenario's seed."""
     report_dir: Path | None = None
+    insecure: bool = False
+    """Plain TCP between the trackside and the onboard (debugging only); by default TLS with
+    certificates of a CA made for the run, the trackside's session enforcing the access
+    control (docs/security.md)."""
 
 
 @dataclass

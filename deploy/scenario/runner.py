@@ -33,6 +33,7 @@ import numpy as np
 from deploy.bench.vc_runner import ScenarioResult
 from deploy.bench.vc_runner import run_scenario as run_vc_scenario
 from deploy.link_proxy import LinkProxy
+from deploy.pki import deployment_pki
 from deploy.ports import loopback_endpoint
 from deploy.scenario.conditions import State
 from deploy.scenario.fault_injector import FaultInjector
@@ -72,7 +73,8 @@ from deploy.scenario.vehicle_setup import VC_DATALOG, onboard_settings
 from deploy.scenario.zenoh_link import ZenohLinkFault
 from onboard.node import OnboardNode
 from onboard.runtime import RealTimeClock, SimClock
-from protocol import ZenohSettings, open_session
+from protocol import TlsFiles, ZenohSettings, open_session
+from protocol.access import access_control
 from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap, load_seed_line
 
@@ -125,6 +127,19 @@ class Progress:
 
 ProgressCallback = Callable[[Progress], None]
 DEFAULT_OPTIONS = RunOptions()
+TRACKSIDE = "ts1"
+"""The run's trackside instance (``trackside.config.Settings.instance_id``'s default)."""
+
+
+def _run_credentials(
+    spec: ScenarioSpec, options: RunOptions, scratch: Path
+) -> tuple[TlsFiles | None, TlsFiles | None]:
+    """The trackside's and the onboard's TLS files, from a CA made for the run in ``scratch``
+    (ECDSA keys: a few milliseconds); None for both when the run is insecure."""
+    if options.insecure:
+        return None, None
+    pki = deployment_pki(scratch / "pki", vehicles=[spec.vehicle.id], tracksides=[TRACKSIDE])
+    return TlsFiles.of(pki, TRACKSIDE), TlsFiles.of(pki, spec.vehicle.id)
 
 
 def run_scenario(
@@ -264,9 +279,22 @@ class WholeStackRun:
             raise ScenarioRunError("friction_drop needs the bogie model (vehicle.fidelity)")
         with ExitStack() as stack:
             scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ato-run-")))
+            trackside_tls, onboard_tls = _run_credentials(spec, options, scratch)
             endpoint = loopback_endpoint()
+            if trackside_tls is not None:
+                endpoint = endpoint.replace("tcp/", "tls/", 1)
             trackside_zenoh = stack.enter_context(
-                open_session(ZenohSettings(mode="peer", connect=(), listen=(endpoint,)))
+                open_session(
+                    ZenohSettings(
+                        mode="peer",
+                        connect=(),
+                        listen=(endpoint,),
+                        tls=trackside_tls,
+                        access_control=None
+                        if trackside_tls is None
+                        else access_control(vehicles=[spec.vehicle.id], tracksides=[TRACKSIDE]),
+                    )
+                )
             )
             # With a link fault the onboard reaches the trackside through a proxy that can cut
             # the link (closed after the sessions: the ExitStack unwinds in reverse).
@@ -276,7 +304,7 @@ class WholeStackRun:
                 proxy = stack.enter_context(LinkProxy.to_endpoint(endpoint))
                 connect = ZenohLinkFault.connect_endpoint(proxy)
             onboard_zenoh = stack.enter_context(
-                open_session(ZenohSettings(mode="peer", connect=(connect,)))
+                open_session(ZenohSettings(mode="peer", connect=(connect,), tls=onboard_tls))
             )
             link = None
             if proxy is not None:

@@ -163,15 +163,21 @@ def test_closing_the_proxy_closes_its_connections(echo: tuple[str, int]) -> None
 
 @pytest.mark.parametrize(
     ("endpoint", "target"),
-    [("tcp/127.0.0.1:7447", ("127.0.0.1", 7447)), ("tcp/[::1]:80", ("::1", 80))],
+    [
+        ("tcp/127.0.0.1:7447", ("127.0.0.1", 7447)),
+        ("tcp/[::1]:80", ("::1", 80)),
+        ("tls/127.0.0.1:7447", ("127.0.0.1", 7447)),
+    ],
 )
 def test_a_proxy_fronts_a_zenoh_tcp_endpoint(endpoint: str, target: tuple[str, int]) -> None:
-    assert LinkProxy.to_endpoint(endpoint).target == target
+    proxy = LinkProxy.to_endpoint(endpoint)
+    assert proxy.target == target
+    assert proxy.scheme == endpoint.split("/")[0]  # a TLS link passes through as bytes
 
 
 @pytest.mark.parametrize("endpoint", ["udp/127.0.0.1:7447", "tcp/127.0.0.1", "127.0.0.1:7447"])
 def test_other_endpoints_are_refused(endpoint: str) -> None:
-    with pytest.raises(ValueError, match="not a tcp/HOST:PORT endpoint"):
+    with pytest.raises(ValueError, match="not a tcp/ or tls/HOST:PORT endpoint"):
         LinkProxy.to_endpoint(endpoint)
 
 

@@ -18,7 +18,11 @@ import pytest
 from typer.testing import CliRunner
 
 from deploy.cli import app
+from deploy.pki import Role, init_ca, issue
 from onboard.vc.datalog import read_datalog
+from protocol import TlsFiles, TransportError, ZenohSettings, open_session
+from protocol import messages as m
+from protocol.registry import COMMAND
 from tests.conftest import wait_for
 
 pytestmark = pytest.mark.e2e
@@ -35,6 +39,9 @@ class Up:
         found = re.search(r"console (\S+)/ \(login (\S+) / (\S+)\)", text)
         assert found, text
         self.url, user, password = found.groups()
+        router = re.search(r"router (\S+),", text)
+        assert router, text
+        self.router = router.group(1)
         self.pids = {
             name: int(pid) for name, pid in re.findall(r"^\s+(\S+)\s+pid (\d+)", text, re.MULTILINE)
         }
@@ -130,6 +137,31 @@ def test_two_vehicles_come_up_die_freeze_and_shut_down_cleanly(up: Up) -> None:
     up.process.send_signal(signal.SIGTERM)
     assert up.process.wait(30.0) == 0
     assert not [name for name, pid in up.pids.items() if _running_pid(pid)]
+
+
+def test_the_fleet_links_are_tls_and_only_its_own_parties_get_an_answer(
+    up: Up, tmp_path: Path
+) -> None:
+    """Issue 20: no certificate, or one from another CA, opens no session; URV2's own
+    certificate does, but a command it sends URV1 gets no answer and its status under URV1's
+    name reaches nobody."""
+    assert up.router.startswith("tls/"), up.router
+    plain = ZenohSettings(mode="client", connect=(up.router.replace("tls/", "tcp/"),))
+    with pytest.raises(TransportError), open_session(plain, connect_timeout_s=2.0):
+        pass
+    init_ca(tmp_path / "other")
+    issue(tmp_path / "other", "URV1", Role.VEHICLE)
+    forged = ZenohSettings(connect=(up.router,), tls=TlsFiles.of(tmp_path / "other", "URV1"))
+    with pytest.raises(TransportError), open_session(forged, connect_timeout_s=2.0):
+        pass
+    urv2 = ZenohSettings(connect=(up.router,), tls=TlsFiles.of(tmp_path / "pki", "URV2"))
+    with open_session(urv2, connect_timeout_s=5.0) as session:
+        for vehicle in ("URV1", "URV2"):
+            ping = m.Command(
+                vehicle_id=vehicle, command_id=1, issued_by="intruder", body=m.PingCommand()
+            )
+            key = COMMAND.key(vehicle=vehicle)
+            assert list(session.get(key, payload=COMMAND.encode(ping), timeout=2.0)) == []
 
 
 JOURNEY_WALL_S = 240.0
