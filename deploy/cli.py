@@ -34,6 +34,8 @@ vc_app = typer.Typer(help="Vital Control tools.", no_args_is_help=True)
 app.add_typer(vc_app, name="vc")
 app.add_typer(sfa_app, name="sfa")
 app.add_typer(pki_app, name="pki")
+audit_app = typer.Typer(help="The trackside's audit log.", no_args_is_help=True)
+app.add_typer(audit_app, name="audit")
 
 ZenohOption = Annotated[str, typer.Option("--zenoh", help="Zenoh router endpoint to connect to.")]
 PkiOption = Annotated[
@@ -559,6 +561,22 @@ def _database_session(database: str | None) -> Iterator[Session]:
             yield session
     finally:
         engine.dispose()
+
+
+@audit_app.command("verify")
+def audit_verify(database: DatabaseOption = None) -> None:
+    """Recompute the audit log's hash chain: exit 0 if intact, 1 with each break found."""
+    from trackside.services.audit_chain import verify
+
+    with _database_session(database) as session:
+        report = verify(session)
+    if report.intact:
+        typer.echo(f"audit log intact: {report.entries} entries chained")
+        return
+    for problem in report.problems:
+        typer.echo(problem, err=True)
+    typer.echo(f"audit log TAMPERED: {len(report.problems)} break(s) in {report.entries} entries")
+    raise typer.Exit(code=1)
 
 
 @trackdb_app.command("import")

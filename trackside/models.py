@@ -19,6 +19,7 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 __all__ = [
     "ApiToken",
+    "AuditChainHead",
     "AuditEntry",
     "Base",
     "JourneyRow",
@@ -104,6 +105,22 @@ class AuditEntry(Base):
     request: Mapped[str] = mapped_column(Text, nullable=False)
     result: Mapped[str] = mapped_column(String(16), nullable=False)
     detail: Mapped[str | None] = mapped_column(Text, nullable=True)
+    prev_hash: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    """The previous entry's :attr:`hash` (``audit_chain.GENESIS`` for the first)."""
+    hash: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    """SHA-256 over this entry's content and :attr:`prev_hash` (``audit_chain.entry_hash``)."""
+
+
+class AuditChainHead(Base):
+    """The audit chain's head: its last entry's id and hash, in one row (id 1) that every
+    append locks, so that entries are chained one after another and a removed last entry shows.
+    """
+
+    __tablename__ = "audit_chain_head"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True)
+    last_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    last_hash: Mapped[str] = mapped_column(String(64), nullable=False)
 
 
 class VehicleEvent(Base):

@@ -19,6 +19,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from protocol import messages as m
 from trackside.models import AuditEntry, TelemetrySample, VehicleEvent
+from trackside.services.audit_chain import append, chained
 
 __all__ = ["Recorder", "RecorderStats", "event_row", "telemetry_row"]
 
@@ -140,8 +141,13 @@ class Recorder:
 
     def _write(self, batch: list[Record]) -> None:
         try:
+            audit = [row for row in batch if isinstance(row, AuditEntry)]
             with self.factory() as db, db.begin():
-                db.add_all(batch)
+                db.add_all([row for row in batch if not isinstance(row, AuditEntry)])
+            if audit:  # they join the hash chain one by one, in the order offered
+                with chained(self.factory) as db:
+                    for row in audit:
+                        append(db, row)
             self.stats.written += len(batch)
         except Exception:  # a database outage must not kill the recorder
             self.stats.failed_batches += 1

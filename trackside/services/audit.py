@@ -17,6 +17,7 @@ from sqlalchemy.orm import Session, sessionmaker
 
 from protocol import messages as m
 from trackside.models import AuditEntry
+from trackside.services.audit_chain import append, chained
 
 __all__ = ["AuditResult", "audit_entry", "command_action", "list_entries", "record"]
 
@@ -53,9 +54,9 @@ def audit_entry(
 
 
 def record(factory: sessionmaker[Session], entry: AuditEntry) -> None:
-    """Write one entry in a transaction of its own."""
-    with factory() as db, db.begin():
-        db.add(entry)
+    """Write one entry, chained (``audit_chain``), in a transaction of its own."""
+    with chained(factory) as db:
+        append(db, entry)
 
 
 def list_entries(db: Session, *, vehicle_id: str | None, limit: int) -> list[AuditEntry]:
