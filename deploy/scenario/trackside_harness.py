@@ -194,8 +194,14 @@ class TracksideHarness:
         sender = threading.Thread(target=send, daemon=True)
         sender.start()
         # The profile reaches the node between slices; the next slice takes it and answers, so
-        # the run does not depend on how fast the messages travel.
-        received = wait_for(lambda: ctx.node.inputs_received[0] > journeys_before, sender)
+        # the run does not depend on how fast the messages travel: waited for as long as the
+        # trackside waits for the answer (gen-1-42, its REST call starved for over 10 s by a
+        # campaign run at nice 19 beside the test suite, was refused with a 504).
+        received = wait_for(
+            lambda: ctx.node.inputs_received[0] > journeys_before,
+            sender,
+            timeout_s=JOURNEY_TIMEOUT_S,
+        )
         if received:
             ctx.run_for(SLICE_S)
         sender.join(JOURNEY_TIMEOUT_S)
