@@ -69,6 +69,12 @@ class Settings(BaseSettings):
         description="Step the simulated operator on a thread every 0.1 s of wall time; off, "
         "whoever embeds the service steps it (the lockstep scenario runner)",
     )
+    max_body_bytes: int = Field(
+        default=8 * 1024 * 1024,
+        ge=1024,
+        description="Largest request body [bytes], refused with 413 before authentication (a "
+        "200 km line document is about 0.5 MB)",
+    )
     recorder_capacity: int = Field(
         default=10_000, ge=1, description="Rows queued for the database before dropping"
     )

@@ -34,6 +34,7 @@ from trackside.api.routes import users as users_routes
 from trackside.bridge import ZenohBridge
 from trackside.config import Settings
 from trackside.db import create_database_engine, migrate
+from trackside.edge import EdgeMiddleware
 from trackside.live import LiveHub
 from trackside.models import Role
 from trackside.ratelimit import LoginLimiter
@@ -302,6 +303,7 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
         lifespan=_lifespan(settings, zenoh_session),
     )
     add_exception_handlers(app)
+    app.add_middleware(EdgeMiddleware, max_body_bytes=settings.max_body_bytes)
     app.include_router(_api_router())
     _add_health_route(app)
     _add_web_console(app, settings.webui_dir)
