@@ -15,6 +15,7 @@ onboard's acknowledgement.
 from __future__ import annotations
 
 import logging
+import re
 import threading
 import time
 from collections.abc import Callable
@@ -53,6 +54,8 @@ from trackside.session import SessionManager
 __all__ = ["VehicleSnapshot", "ZenohBridge"]
 
 _log = logging.getLogger(__name__)
+_VEHICLE_ID = re.compile(r"[A-Za-z0-9_-]{1,32}")
+"""``protocol.messages.VehicleId``'s pattern and length."""
 
 ChangeListener = Callable[[], None]
 StatusObserver = Callable[[m.StatusReport], object]
@@ -93,6 +96,8 @@ class ZenohBridge:
         self._acks_changed = threading.Condition()
         self._lock = threading.Lock()
         self._known: set[str] = set()
+        self.bad_liveliness = 0
+        """Liveliness tokens under ``ato/alive/ob/`` whose last chunk is not a vehicle id."""
         self._alive: set[str] = set()
         self._listeners: list[ChangeListener] = []
         self._status_observers: list[StatusObserver] = []
@@ -163,6 +168,12 @@ class ZenohBridge:
 
     def _on_liveliness(self, key: str, alive: bool) -> None:
         vehicle = key.rsplit("/", 1)[-1]
+        if not _VEHICLE_ID.fullmatch(vehicle):
+            # Not a vehicle id (a misconfigured or hostile peer): counted and dropped, so that
+            # one bad token cannot break the fleet view.
+            self.bad_liveliness += 1
+            _log.warning("liveliness token %r is not a vehicle's: ignored", key)
+            return
         with self._lock:
             self._known.add(vehicle)
             if alive:
