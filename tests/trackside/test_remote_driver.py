@@ -152,7 +152,10 @@ RULES: dict[tuple[str, str], Rule] = {
     ("GET", "/api/v1/audit"): Rule("admin"),
 } | {
     ("POST", f"/api/v1/vehicles/{{vehicle_id}}/{name}"): Rule(
-        "driver", hold=True, json=_returning(body)
+        # The emergency brake is any driver's, held or not (issue 20).
+        "driver",
+        hold=name != "emergency-brake",
+        json=_returning(body),
     )
     for name, body in COMMANDS.items()
     if not name.startswith("confirmations/")
