@@ -103,19 +103,24 @@ def test_requests_are_refused_with_reasons_in_the_wrong_state() -> None:
     assert "above line speed" in fast
 
 
-def test_an_rbc_movement_authority_reaches_etcs() -> None:
-    line = TrackMap(load_seed_line("milano-bologna"))
-    onboard = stack(line, position_m=1000.0)
-    onboard.step_etcs(0.0)
-    message = m.MovementAuthorityMessage(
+def _issued(line: TrackMap, extent: m.MovementAuthorityExtent) -> m.MovementAuthorityMessage:
+    """The RBC's first MA for URV1 on ``line``, issued at 0 s."""
+    return m.MovementAuthorityMessage(
         vehicle_id="URV1",
         ma_id=1,
         change=m.MovementAuthorityChange.ISSUED,
         issued_at_s=0.0,
         line_id=line.line.id,
         line_version=line.version,
-        authority=m.MovementAuthorityExtent(start_m=1000.0, end_of_authority_m=6000.0),
+        authority=extent,
     )
+
+
+def test_an_rbc_movement_authority_reaches_etcs() -> None:
+    line = TrackMap(load_seed_line("milano-bologna"))
+    onboard = stack(line, position_m=1000.0)
+    onboard.step_etcs(0.0)
+    message = _issued(line, m.MovementAuthorityExtent(start_m=1000.0, end_of_authority_m=6000.0))
     assert onboard.receive_movement_authority(message, 0.1) == "new"
     output = onboard.etcs.step_on_sensors(0.2, [])  # standing at its start
     assert output.end_of_authority_distance_m == pytest.approx(5000.0, abs=1.0)
@@ -180,15 +185,7 @@ def test_the_adf_locates_the_eoa_from_the_fused_position_not_from_etcs_odometry(
     extent = m.MovementAuthorityExtent(
         start_m=1000.0, end_of_authority_m=1400.0, danger_point_m=200.0
     )
-    message = m.MovementAuthorityMessage(
-        vehicle_id="URV1",
-        ma_id=1,
-        change=m.MovementAuthorityChange.ISSUED,
-        issued_at_s=0.0,
-        line_id=line.line.id,
-        line_version=line.version,
-        authority=extent,
-    )
+    message = _issued(line, extent)
     onboard.step_etcs(0.0)
     assert onboard.receive_movement_authority(message, 0.1) == "new"
     onboard.step_etcs(0.2)
