@@ -23,6 +23,8 @@ __all__ = [
     "AuditEntry",
     "Base",
     "JourneyRow",
+    "RbcAuthorityRow",
+    "RbcRestrictionRow",
     "Role",
     "TelemetrySample",
     "User",
@@ -121,6 +123,30 @@ class AuditChainHead(Base):
     id: Mapped[int] = mapped_column(Integer, primary_key=True)
     last_id: Mapped[int | None] = mapped_column(Integer, nullable=True)
     last_hash: Mapped[str] = mapped_column(String(64), nullable=False)
+
+
+class RbcAuthorityRow(Base):
+    """The RBC's state for one vehicle: its MA counter and the MA in force (JSON of the
+    ``MovementAuthorityMessage``; null once revoked), restored when the trackside starts."""
+
+    __tablename__ = "rbc_movement_authorities"
+
+    vehicle_id: Mapped[str] = mapped_column(String(32), primary_key=True)
+    last_ma_id: Mapped[int] = mapped_column(Integer, nullable=False)
+    message: Mapped[str | None] = mapped_column(Text, nullable=True)
+    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False)
+
+
+class RbcRestrictionRow(Base):
+    """A TSR in force for one vehicle (JSON of the ``SpeedRestrictionMessage``); a revocation
+    deletes its row."""
+
+    __tablename__ = "rbc_speed_restrictions"
+
+    vehicle_id: Mapped[str] = mapped_column(String(32), primary_key=True)
+    restriction_id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    message: Mapped[str] = mapped_column(Text, nullable=False)
+    issued_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False)
 
 
 class VehicleEvent(Base):
