@@ -23,6 +23,7 @@ from fastapi.staticfiles import StaticFiles
 from sqlalchemy import Engine
 from sqlalchemy.orm import Session, sessionmaker
 
+from protocol import messages as m
 from protocol import open_session
 from protocol.messages import StatusReport
 from trackdb import LineNotFoundError
@@ -36,7 +37,7 @@ from trackside.config import Settings
 from trackside.db import create_database_engine, migrate
 from trackside.edge import EdgeMiddleware
 from trackside.live import LiveHub
-from trackside.models import Role
+from trackside.models import AuditEntry, Role
 from trackside.ratelimit import LoginLimiter
 from trackside.rbc import LineInfo, RbcEmulator
 from trackside.rbc_scenario import (
@@ -114,8 +115,38 @@ def _plotly_js() -> Path:
     return Path(str(bundle))
 
 
+def _operator_entry(
+    command: m.Command, result: audit.AuditResult, detail: str | None = None
+) -> AuditEntry:
+    """An audit entry of a simulated operator's command; intent and outcome share its id."""
+    request = command.body.model_dump(mode="json")
+    return audit.audit_entry(
+        user=SIMULATED_OPERATOR,
+        vehicle_id=command.vehicle_id,
+        action=audit.command_action(command.body),
+        request=request | {"request_id": command.command_id, "command_id": command.command_id},
+        result=result,
+        detail=detail,
+    )
+
+
+def _send_operator_command(
+    bridge: ZenohBridge,
+    recorder: Recorder,
+    timeout_s: float,
+    command: m.Command,
+    on_done: Callable[[m.CommandAck | None], None],
+) -> None:
+    """Queue the intent's audit entry, then send (on the operator's thread; never waits on the
+    database: the recorder's audit writer never drops an entry)."""
+    recorder.offer(_operator_entry(command, audit.AuditResult.REQUESTED))
+    # A ProtocolError goes to the operator, which answers it as no acknowledgement (the
+    # outcome's entry, by _audit_answer).
+    bridge.command_async(command, on_done, timeout_s=timeout_s)
+
+
 def _audit_answer(recorder: Recorder, answer: OperatorAnswer) -> None:
-    """Queue the audit entry of a simulated operator's answer (called on Zenoh's thread)."""
+    """Queue the outcome's audit entry of a simulated operator's answer (on Zenoh's thread)."""
     ack = answer.ack
     result = (
         audit.AuditResult.TIMEOUT
@@ -124,16 +155,7 @@ def _audit_answer(recorder: Recorder, answer: OperatorAnswer) -> None:
         if ack.accepted
         else audit.AuditResult.REFUSED
     )
-    recorder.offer(
-        audit.audit_entry(
-            user=SIMULATED_OPERATOR,
-            vehicle_id=answer.command.vehicle_id,
-            action=audit.command_action(answer.command.body),
-            request=answer.command.body.model_dump(mode="json"),
-            result=result,
-            detail=None if ack is None else ack.reason,
-        )
-    )
+    recorder.offer(_operator_entry(answer.command, result, None if ack is None else ack.reason))
 
 
 def _simulated_operator(
@@ -142,9 +164,7 @@ def _simulated_operator(
     if not settings.simulated_operators:
         return None
     operator = SimulatedOperator(
-        lambda command, on_done: bridge.command_async(
-            command, on_done, timeout_s=settings.command_timeout_s
-        ),
+        partial(_send_operator_command, bridge, recorder, settings.command_timeout_s),
         settings.simulated_operators,
         reaction_s=settings.simulated_operator_reaction_s,
         kinds=settings.simulated_operator_kinds,

@@ -5,6 +5,12 @@ hand what is to be kept to :class:`Recorder.offer`, which only appends to a boun
 full, the item is dropped and counted); one background thread writes the queue to the database
 in batches. Telemetry is downsampled before it is queued: one status per vehicle per second of
 the vehicle's own simulated time.
+
+Audit entries never take that path: losing telemetry under load is acceptable, losing an audit
+entry is not. :class:`AuditWriter` keeps them in an unbounded queue of their own (appending never
+blocks and never drops) written by its own thread; a failed write (a database outage) is retried
+until it succeeds, in the order offered, and :meth:`AuditWriter.close` logs at ERROR, in full,
+any entry still unwritten when the service stops.
 """
 
 from __future__ import annotations
@@ -12,6 +18,7 @@ from __future__ import annotations
 import logging
 import queue
 import threading
+from collections import deque
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 
@@ -21,14 +28,22 @@ from protocol import messages as m
 from trackside.models import AuditEntry, TelemetrySample, VehicleEvent
 from trackside.services.audit_chain import append, chained
 
-__all__ = ["Recorder", "RecorderStats", "event_row", "telemetry_row"]
+__all__ = [
+    "AuditWriter",
+    "AuditWriterStats",
+    "Recorder",
+    "RecorderStats",
+    "event_row",
+    "telemetry_row",
+]
 
 _log = logging.getLogger(__name__)
 
 BATCH = 256
 """At most this many rows per transaction."""
 
-Record = VehicleEvent | TelemetrySample | AuditEntry
+Record = VehicleEvent | TelemetrySample
+"""What goes through the bounded queue (audit entries go to :class:`AuditWriter`)."""
 
 
 @dataclass
@@ -72,8 +87,128 @@ def telemetry_row(report: m.StatusReport, received_at: datetime) -> TelemetrySam
 
 
 @dataclass
+class AuditWriterStats:
+    queued: int = 0
+    written: int = 0
+    failed_writes: int = 0
+    """Writes that failed and were retried (the entries stay queued)."""
+    unwritten_at_close: int = 0
+
+
+def _copy(entry: AuditEntry) -> AuditEntry:
+    """A fresh entry of the same content: a retry must not reuse an object that a rolled-back
+    session flushed (it may keep that attempt's id)."""
+    return AuditEntry(
+        at=entry.at,
+        username=entry.username,
+        vehicle_id=entry.vehicle_id,
+        action=entry.action,
+        request=entry.request,
+        result=entry.result,
+        detail=entry.detail,
+    )
+
+
+@dataclass
+class AuditWriter:
+    """Writes audit entries from its own thread, in the order offered; never drops one.
+
+    :meth:`offer` appends to an unbounded queue and returns at once (for Zenoh's threads). A
+    batch that fails to be written stays at the head of the queue and is retried every
+    ``retry_s`` until it is written or the writer is closed.
+    """
+
+    factory: sessionmaker[Session]
+    retry_s: float = 1.0
+    stats: AuditWriterStats = field(default_factory=AuditWriterStats)
+
+    def __post_init__(self) -> None:
+        self._pending: deque[AuditEntry] = deque()
+        self._changed = threading.Condition()
+        self._writing = 0
+        self._closing = False
+        self._thread = threading.Thread(target=self._run, name="trackside-audit", daemon=True)
+        self._thread.start()
+
+    def offer(self, entry: AuditEntry) -> None:
+        """Queue ``entry`` to be written (never blocks on the database, never drops)."""
+        with self._changed:
+            self._pending.append(_copy(entry))
+            self.stats.queued += 1
+            self._changed.notify_all()
+
+    def flush(self, timeout_s: float = 5.0) -> bool:
+        """Wait until every entry offered so far is written; False on timeout."""
+        with self._changed:
+            return self._changed.wait_for(
+                lambda: not self._pending and not self._writing, timeout_s
+            )
+
+    def _next_batch(self) -> list[AuditEntry] | None:
+        """The entries to write next (left queued until written); None once closed and empty."""
+        with self._changed:
+            self._changed.wait_for(lambda: self._pending or self._closing)
+            if not self._pending:
+                return None
+            batch = [self._pending[index] for index in range(min(BATCH, len(self._pending)))]
+            self._writing = len(batch)
+            return batch
+
+    def _run(self) -> None:
+        while (batch := self._next_batch()) is not None:
+            written = self._write(batch)
+            with self._changed:
+                if written:
+                    for _ in batch:
+                        self._pending.popleft()
+                    self.stats.written += len(batch)
+                self._writing = 0
+                self._changed.notify_all()
+                if not written and not self._closing:
+                    self._changed.wait(self.retry_s)  # a close wakes it for a last attempt
+            if not written and self._closing:
+                return
+
+    def _write(self, batch: list[AuditEntry]) -> bool:
+        try:
+            with chained(self.factory) as db:  # they join the hash chain in the order offered
+                for entry in batch:
+                    append(db, _copy(entry))
+        except Exception:  # a database outage: keep the entries, retry
+            self.stats.failed_writes += 1
+            _log.exception("could not write %d audit entries; retrying", len(batch))
+            return False
+        return True
+
+    def close(self, timeout_s: float = 10.0) -> None:
+        """Write what is queued, then stop; an entry still unwritten is logged in full."""
+        with self._changed:
+            self._closing = True
+            self._changed.notify_all()
+        self._thread.join(timeout_s)
+        with self._changed:
+            left = list(self._pending)
+        self.stats.unwritten_at_close = len(left)
+        for entry in left:
+            _log.error(
+                "audit entry not written: at=%s user=%s vehicle=%s action=%s request=%s "
+                "result=%s detail=%s",
+                entry.at.isoformat(),
+                entry.username,
+                entry.vehicle_id,
+                entry.action,
+                entry.request,
+                entry.result,
+                entry.detail,
+            )
+
+
+@dataclass
 class Recorder:
-    """Writes what it is offered from one background thread; :meth:`offer` never blocks."""
+    """Writes what it is offered from one background thread; :meth:`offer` never blocks.
+
+    Audit entries offered go to its :class:`AuditWriter` (``audit``), never to the bounded
+    queue."""
 
     factory: sessionmaker[Session]
     capacity: int = 10_000
@@ -86,11 +221,16 @@ class Recorder:
         self._sample_lock = threading.Lock()
         self._idle = threading.Condition()
         self._busy = 0
+        self.audit = AuditWriter(self.factory)
         self._thread = threading.Thread(target=self._run, name="trackside-recorder", daemon=True)
         self._thread.start()
 
-    def offer(self, row: Record) -> bool:
-        """Queue a row to be written; False (dropped and counted) when the queue is full."""
+    def offer(self, row: Record | AuditEntry) -> bool:
+        """Queue a row to be written; False (dropped and counted) when the queue is full. An
+        audit entry is never dropped (:class:`AuditWriter`)."""
+        if isinstance(row, AuditEntry):
+            self.audit.offer(row)
+            return True
         try:
             self._queue.put_nowait(row)
         except queue.Full:
@@ -117,7 +257,8 @@ class Recorder:
     def flush(self, timeout_s: float = 5.0) -> bool:
         """Wait until everything offered so far is written (or dropped); for tests and shutdown."""
         with self._idle:
-            return self._idle.wait_for(lambda: self._busy == 0, timeout_s)
+            rows = self._idle.wait_for(lambda: self._busy == 0, timeout_s)
+        return rows and self.audit.flush(timeout_s)
 
     def _run(self) -> None:
         while True:
@@ -141,13 +282,8 @@ class Recorder:
 
     def _write(self, batch: list[Record]) -> None:
         try:
-            audit = [row for row in batch if isinstance(row, AuditEntry)]
             with self.factory() as db, db.begin():
-                db.add_all([row for row in batch if not isinstance(row, AuditEntry)])
-            if audit:  # they join the hash chain one by one, in the order offered
-                with chained(self.factory) as db:
-                    for row in audit:
-                        append(db, row)
+                db.add_all(batch)
             self.stats.written += len(batch)
         except Exception:  # a database outage must not kill the recorder
             self.stats.failed_batches += 1
@@ -158,6 +294,7 @@ class Recorder:
                 self._idle.notify_all()
 
     def close(self, timeout_s: float = 10.0) -> None:
-        """Write what is queued, then stop the thread."""
+        """Write what is queued, then stop the threads."""
         self._queue.put(None)
         self._thread.join(timeout_s)
+        self.audit.close(timeout_s)

@@ -53,6 +53,7 @@ def test_role_too_low_is_403(client: TestClient, admin_headers: dict[str, str]) 
     assert client.get("/api/v1/users/me", headers=observer).json() == {
         "username": "olga",
         "role": "observer",
+        "disabled": False,
     }
     assert client.get("/api/v1/vehicles", headers=observer).status_code == 200
     forbidden = client.post(

@@ -103,6 +103,13 @@ def _returning(body: dict[str, Any]) -> Callable[[], dict[str, Any]]:
     return lambda: body
 
 
+def _ensure_mallory(client: TestClient) -> None:
+    """The user the matrix disables, enables and gives a new password."""
+    body = {"username": "mallory", "password": "password-1", "role": "observer"}
+    created = client.post("/api/v1/users", json=body, headers=headers_of(client, "admin"))
+    assert created.status_code in (201, 409), created.text
+
+
 def _issue_ma(client: TestClient) -> None:
     response = client.post("/api/v1/rbc/URV1/ma", json=MA, headers=headers_of(client, "admin"))
     assert response.status_code == 201, response.text
@@ -112,6 +119,11 @@ RULES: dict[tuple[str, str], Rule] = {
     ("POST", "/api/v1/auth/logout"): Rule("observer", 204),
     ("GET", "/api/v1/users/me"): Rule("observer"),
     ("POST", "/api/v1/users"): Rule("admin", 201, json=_new_user),
+    ("POST", "/api/v1/users/{username}/disable"): Rule("admin", prepare=_ensure_mallory),
+    ("POST", "/api/v1/users/{username}/enable"): Rule("admin", prepare=_ensure_mallory),
+    ("POST", "/api/v1/users/{username}/password"): Rule(
+        "admin", json=lambda: {"password": "password-2"}, prepare=_ensure_mallory
+    ),
     ("GET", "/api/v1/vehicles"): Rule("observer"),
     ("GET", "/api/v1/vehicles/{vehicle_id}"): Rule("observer"),
     ("POST", "/api/v1/vehicles/{vehicle_id}/select"): Rule("driver", hold=True),
@@ -168,6 +180,7 @@ PATH_VALUES = {
     "journey_id": "matrix",
     "restriction_id": "works",
     "kind": "vigilance-ack",
+    "username": "mallory",
 }
 
 
@@ -278,11 +291,16 @@ def test_every_command_is_answered_by_the_vehicle_and_audited(service: TestClien
     audit = service.get(
         "/api/v1/audit", params={"vehicle_id": "URV1", "limit": 50}, headers=admin
     ).json()
-    by_id = {
-        entry["request"].get("command_id"): entry for entry in audit if entry["user"] == "alice"
-    }
+    pairs: dict[Any, list[dict[str, Any]]] = {}
+    for entry in audit:
+        if entry["user"] == "alice":
+            pairs.setdefault(entry["request"].get("command_id"), []).append(entry)
+    by_id = {command_id: entries[-1] for command_id, entries in pairs.items()}
     for name, answer in answers.items():
-        entry = by_id[answer["command_id"]]
+        # The intent before the vehicle was asked, then the outcome (issue 20).
+        intent, entry = pairs[answer["command_id"]]
+        assert intent["result"] == "requested", name
+        assert intent["request"]["request_id"] == entry["request"]["request_id"]
         assert entry["result"] == ("accepted" if answer["accepted"] else "refused"), name
         assert entry["detail"] == answer["reason"]
     actions = {entry["action"] for entry in by_id.values()}

@@ -13,6 +13,7 @@ from fastapi import Depends, Request
 from fastapi.security import OAuth2PasswordBearer
 from sqlalchemy.orm import Session, sessionmaker
 
+from trackside.api.audit_trail import AuditTrail, audit_trail
 from trackside.bridge import ZenohBridge
 from trackside.config import Settings
 from trackside.models import Role, User
@@ -22,6 +23,7 @@ from trackside.simulated_operator import SimulatedOperatorThread
 
 __all__ = [
     "AdminUser",
+    "AuditDep",
     "BridgeDep",
     "CommandsDep",
     "SimulatedDep",
@@ -37,10 +39,15 @@ __all__ = [
 oauth2_scheme = OAuth2PasswordBearer(tokenUrl="/api/v1/auth/token")
 
 
-def get_db(request: Request) -> Iterator[Session]:
+AuditDep = Annotated[AuditTrail, Depends(audit_trail, scope="function")]
+"""The request's audit trail; closed (its entries written) after the request's transaction."""
+
+
+def get_db(request: Request, _trail: AuditDep) -> Iterator[Session]:
     """One transaction per request, committed when the route function returns (``scope=
     "function"`` below), so before the answer leaves: a client that sends its next request as
-    soon as it reads the answer (the console right after sign-in) sees what was written."""
+    soon as it reads the answer (the console right after sign-in) sees what was written. It
+    depends on the audit trail so that the trail is closed after the transaction has ended."""
     factory: sessionmaker[Session] = request.app.state.session_factory
     with factory() as db, db.begin():
         yield db

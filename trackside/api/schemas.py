@@ -42,6 +42,7 @@ __all__ = [
     "LineVersionPublic",
     "LineVersionRef",
     "MovementAuthorityPublic",
+    "PasswordReset",
     "ProblemsPublic",
     "RefusedPublic",
     "SkipStopRequest",
@@ -71,13 +72,20 @@ class UserCreate(BaseModel):
     role: Role
 
 
+class PasswordReset(BaseModel):
+    """A user's new password, set by an admin (the user's tokens are revoked)."""
+
+    password: str = Field(min_length=8, max_length=256)
+
+
 class UserPublic(BaseModel):
     username: str
     role: Role
+    disabled: bool = False
 
     @classmethod
     def from_user(cls, user: User) -> UserPublic:
-        return cls(username=user.username, role=Role(user.role))
+        return cls(username=user.username, role=Role(user.role), disabled=bool(user.disabled))
 
 
 # -- vehicles ----------------------------------------------------------------------------------

@@ -1,8 +1,14 @@
-"""The audit log: every command sent to a vehicle and every hold change, with its outcome.
+"""The audit log: every mutating call and every login, with its outcome (docs/security.md).
 
-Entries are written in their own transaction (a refused or failed command is audited even
-though its request answers with an error), or queued to the recorder by callers on Zenoh's
-threads.
+An entry names who (the user, or the username tried by a failed login), when, the action, its
+request (JSON, never a password), the result and a detail. A command to a vehicle leaves two
+entries that share ``request_id`` in their request: the intent (:attr:`AuditResult.REQUESTED`),
+written before the vehicle is asked, and the outcome once it answered or could not be asked.
+
+:func:`record` writes one entry, chained (``audit_chain``), in a transaction of its own, so a
+refused or failed call is audited although its request fails. Callers on Zenoh's threads hand
+their entries to the recorder's audit writer instead (``trackside.recorder.AuditWriter``), which
+never drops one.
 """
 
 from __future__ import annotations
@@ -19,18 +25,33 @@ from protocol import messages as m
 from trackside.models import AuditEntry
 from trackside.services.audit_chain import append, chained
 
-__all__ = ["AuditResult", "audit_entry", "command_action", "list_entries", "record"]
+__all__ = [
+    "USERNAME_CHARS",
+    "AuditResult",
+    "audit_entry",
+    "command_action",
+    "list_entries",
+    "record",
+]
 
 
 class AuditResult(StrEnum):
+    REQUESTED = "requested"
+    """The intent of a request to a vehicle, written before the vehicle is asked; its outcome
+    follows in another entry with the same ``request_id``."""
     ACCEPTED = "accepted"
-    """The vehicle accepted the command (or the hold changed)."""
+    """Done: the vehicle accepted the command, or the trackside made the change."""
     REFUSED = "refused"
-    """The vehicle, or the trackside, refused it, with the reason in the detail."""
+    """The vehicle, or the trackside, refused it (a failed login too), with the reason in the
+    detail."""
     TIMEOUT = "timeout"
     """The vehicle did not answer in time."""
     FAILED = "failed"
-    """It could not be sent, or the answer was not valid."""
+    """It could not be sent, the answer was not valid, or the trackside failed."""
+
+
+USERNAME_CHARS = 64
+"""The length of the user column; a longer username tried at login is cut to it."""
 
 
 def audit_entry(
@@ -42,9 +63,10 @@ def audit_entry(
     result: AuditResult,
     detail: str | None = None,
 ) -> AuditEntry:
+    """An entry stamped now, its request as canonical JSON."""
     return AuditEntry(
         at=datetime.now(UTC),
-        username=user,
+        username=user[:USERNAME_CHARS],
         vehicle_id=vehicle_id,
         action=action,
         request=json.dumps(request, sort_keys=True),

@@ -1,8 +1,12 @@
 """Commands to a vehicle on behalf of a user: checked, sent over Zenoh, answered, audited.
 
-Each attempt is audited in a transaction of its own, whatever became of it: accepted or refused
-by the vehicle, refused by the trackside (vehicle not alive, not held by the user), timed out,
-or failed on the link.
+Each attempt leaves two audit entries, each written in a transaction of its own, that share a
+``request_id`` in their request (for a command, also its ``command_id``, the id the vehicle
+acknowledges): the intent (``requested``), written before anything is checked or sent, so no
+vehicle is asked anything that is not in the log first (if the intent cannot be written, the
+command is not sent); then the outcome, whatever became of it: accepted or refused by the
+vehicle, refused by the trackside (vehicle not alive, not held by the user), timed out, or
+failed on the link.
 """
 
 from __future__ import annotations
@@ -50,7 +54,7 @@ class CommandService:
         action: str,
         request: dict[str, Any],
         result: audit.AuditResult,
-        detail: str | None,
+        detail: str | None = None,
     ) -> None:
         entry = audit.audit_entry(
             user=user.username,
@@ -78,14 +82,19 @@ class CommandService:
         user), :class:`VehicleTimeoutError`, :class:`VehicleLinkError`.
         """
         action = audit.command_action(body)
-        request = body.model_dump(mode="json")
+        command_id = next(self._ids)
+        request = body.model_dump(mode="json") | {
+            "request_id": command_id,
+            "command_id": command_id,
+        }
+        self._audit(user, vehicle_id, action, request, audit.AuditResult.REQUESTED)
         try:
             # The emergency brake is any driver's to ask for, whoever holds the vehicle.
             braking = isinstance(body, m.EmergencyBrakeCommand)
             self._check(user, vehicle_id, needs_hold=not braking)
             command = m.Command(
                 vehicle_id=vehicle_id,
-                command_id=next(self._ids),
+                command_id=command_id,
                 issued_by=user.username,
                 body=body,
             )
@@ -99,10 +108,11 @@ class CommandService:
         except ProtocolError as exc:
             self._audit(user, vehicle_id, action, request, audit.AuditResult.FAILED, str(exc))
             raise VehicleLinkError(f"{vehicle_id}: {exc}") from exc
+        except Exception as exc:  # the intent must not stay without its outcome
+            self._audit(user, vehicle_id, action, request, audit.AuditResult.FAILED, repr(exc))
+            raise
         result = audit.AuditResult.ACCEPTED if ack.accepted else audit.AuditResult.REFUSED
-        self._audit(
-            user, vehicle_id, action, request | {"command_id": ack.command_id}, result, ack.reason
-        )
+        self._audit(user, vehicle_id, action, request, result, ack.reason)
         return ack
 
     def send_journey_profile(
@@ -113,7 +123,12 @@ class CommandService:
         or the journey is no longer valid on its line, :class:`NotFoundError` for an unknown
         journey."""
         action = "journey_profile"
-        request: dict[str, Any] = {"journey_id": journey_id, "version": version}
+        request: dict[str, Any] = {
+            "journey_id": journey_id,
+            "version": version,
+            "request_id": next(self._ids),
+        }
+        self._audit(user, vehicle_id, action, request, audit.AuditResult.REQUESTED)
         try:
             self._check(user, vehicle_id)
             if not self._bridge.session_open(vehicle_id):
@@ -140,6 +155,9 @@ class CommandService:
         except ProtocolError as exc:
             self._audit(user, vehicle_id, action, request, audit.AuditResult.FAILED, str(exc))
             raise VehicleLinkError(f"{vehicle_id}: {exc}") from exc
+        except Exception as exc:  # the intent must not stay without its outcome
+            self._audit(user, vehicle_id, action, request, audit.AuditResult.FAILED, repr(exc))
+            raise
         request["version"] = stored.version
         if ack is None:
             self._audit(user, vehicle_id, action, request, audit.AuditResult.TIMEOUT, None)

@@ -1,10 +1,15 @@
-"""Users, roles and bearer tokens."""
+"""Users, roles and bearer tokens; an admin disables users and resets passwords.
+
+A disabled user cannot log in, and their tokens are refused at once: :func:`resolve_token` reads
+the user on every request. Disabling also revokes their tokens, as does a password reset, so
+that enabling the user again does not bring the old tokens back.
+"""
 
 from __future__ import annotations
 
 from datetime import UTC, datetime, timedelta
 
-from sqlalchemy import select
+from sqlalchemy import select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -12,6 +17,7 @@ from trackside.errors import (
     AuthenticationError,
     ConflictError,
     InvalidTokenError,
+    NotFoundError,
     PermissionDeniedError,
 )
 from trackside.models import ApiToken, Role, User
@@ -21,10 +27,14 @@ __all__ = [
     "authenticate",
     "create_user",
     "ensure_user",
+    "get_user",
     "issue_token",
     "require_role",
+    "reset_password",
     "resolve_token",
     "revoke_token",
+    "revoke_tokens_of",
+    "set_disabled",
 ]
 
 _DUMMY_HASH = hash_password("timing-equaliser")
@@ -34,11 +44,15 @@ def _now() -> datetime:
     return datetime.now(UTC)
 
 
+def _check_password(password: str) -> None:
+    if len(password) < 4:
+        raise ValueError("password must have at least 4 characters")
+
+
 def create_user(db: Session, username: str, password: str, role: Role) -> User:
     if not username or len(username) > 64:
         raise ValueError("username must have 1 to 64 characters")
-    if len(password) < 4:
-        raise ValueError("password must have at least 4 characters")
+    _check_password(password)
     user = User(
         username=username,
         password_hash=hash_password(password),
@@ -67,6 +81,8 @@ def authenticate(db: Session, username: str, password: str) -> User:
         raise AuthenticationError("wrong username or password")
     if not verify_password(password, user.password_hash):
         raise AuthenticationError("wrong username or password")
+    if user.disabled:  # said only to who knows the password
+        raise AuthenticationError(f"user {username!r} is disabled")
     return user
 
 
@@ -96,6 +112,8 @@ def resolve_token(db: Session, token: str) -> User:
     user = db.get(User, row.user_id)
     if user is None:
         raise InvalidTokenError("token of a deleted user")
+    if user.disabled:
+        raise InvalidTokenError("token of a disabled user")
     return user
 
 
@@ -109,3 +127,44 @@ def revoke_token(db: Session, token: str) -> None:
 def require_role(user: User, role: Role) -> None:
     if Role(user.role).rank < role.rank:
         raise PermissionDeniedError(f"{role.value} role needed, {user.username} is {user.role}")
+
+
+def revoke_tokens_of(db: Session, user: User) -> int:
+    """Revoke every token of ``user`` still valid; how many were."""
+    result = db.execute(
+        update(ApiToken)
+        .where(ApiToken.user_id == user.id, ApiToken.revoked.is_(False))
+        .values(revoked=True)
+    )
+    db.flush()
+    return int(getattr(result, "rowcount", 0) or 0)
+
+
+def get_user(db: Session, username: str) -> User:
+    """The user of that name; :class:`NotFoundError` if there is none."""
+    user = db.scalar(select(User).where(User.username == username))
+    if user is None:
+        raise NotFoundError(f"no user {username!r}")
+    return user
+
+
+def set_disabled(db: Session, admin: User, username: str, *, disabled: bool) -> User:
+    """Disable (their tokens revoked) or enable a user. An admin cannot disable themself: the
+    last admin would lock everyone out."""
+    user = get_user(db, username)
+    if disabled and user.id == admin.id:
+        raise ConflictError("an admin cannot disable their own account")
+    user.disabled = disabled
+    if disabled:
+        revoke_tokens_of(db, user)
+    db.flush()
+    return user
+
+
+def reset_password(db: Session, username: str, password: str) -> User:
+    """Set a new password for the user and revoke their tokens."""
+    _check_password(password)
+    user = get_user(db, username)
+    user.password_hash = hash_password(password)
+    revoke_tokens_of(db, user)
+    return user

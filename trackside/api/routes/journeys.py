@@ -1,4 +1,4 @@
-"""Journeys: plan, validate, store with versions."""
+"""Journeys: plan, validate, store with versions (audited)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from typing import Annotated
 from fastapi import APIRouter, Query, status
 
 from trackdb.journey import Journey
-from trackside.api.deps import DriverUser, ObserverUser, SessionDep
+from trackside.api.deps import AuditDep, DriverUser, ObserverUser, SessionDep
 from trackside.api.schemas import JourneyCheckPublic, JourneyPublic
 from trackside.services import journeys as service
 
@@ -24,9 +24,15 @@ def validate_journey(journey: Journey, db: SessionDep, _user: ObserverUser) -> J
 
 
 @router.post("", status_code=status.HTTP_201_CREATED)
-def create_journey(journey: Journey, db: SessionDep, user: DriverUser) -> JourneyPublic:
+def create_journey(
+    journey: Journey, db: SessionDep, user: DriverUser, trail: AuditDep
+) -> JourneyPublic:
     """Store a journey as its next version; an invalid journey is refused with its problems."""
-    return JourneyPublic.from_stored(service.create_journey(db, journey, created_by=user.username))
+    request = {"journey_id": journey.id, "line_id": journey.line_id}
+    with trail.action(user.username, "journey.create", request=request) as note:
+        stored = service.create_journey(db, journey, created_by=user.username)
+        note.request["version"] = stored.version
+    return JourneyPublic.from_stored(stored)
 
 
 @router.get("")

@@ -1,4 +1,5 @@
-"""Lines: the track database, its versions, import and export, and profiles for plotting."""
+"""Lines: the track database, its versions, import (audited) and export, and profiles for
+plotting."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Depends, Query, Request, Response, status
 
 from trackdb import Line
-from trackside.api.deps import AdminUser, ObserverUser, SessionDep
+from trackside.api.deps import AdminUser, AuditDep, ObserverUser, SessionDep
 from trackside.api.schemas import (
     LineProfilePublic,
     LinePublic,
@@ -68,12 +69,19 @@ def list_lines(db: SessionDep, _user: ObserverUser) -> list[LinePublic]:
     },
     openapi_extra=LINE_DOCUMENT_BODY,
 )
-def import_line(body: RawBody, response: Response, db: SessionDep, _admin: AdminUser) -> LinePublic:
+def import_line(
+    body: RawBody, response: Response, db: SessionDep, admin: AdminUser, trail: AuditDep
+) -> LinePublic:
     """Import a line document (admin only); it becomes the line's current version."""
-    outcome = lines.import_line(db, body)
+    # The audit entry names the line and version stored, not the whole document.
+    with trail.action(admin.username, "line.import", request={"bytes": len(body)}) as note:
+        outcome = lines.import_line(db, body)
+        summary = outcome.summary
+        note.request |= {"line_id": summary.id, "version": summary.version}
+        note.detail = None if outcome.new_version else "that version was stored already"
     if not outcome.new_version:
         response.status_code = status.HTTP_200_OK
-    return LinePublic.from_summary(outcome.summary)
+    return LinePublic.from_summary(summary)
 
 
 @router.get("/{line_id}", response_model=Line, responses=NOT_FOUND)

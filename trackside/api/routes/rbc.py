@@ -1,19 +1,19 @@
 """The RBC emulator: read, issue, extend, shorten and revoke a vehicle's movement authority (MA).
 
-Reading is for every role; changes are for admins and are audited on the ``trackside.audit``
-logger. A refused change sends nothing and changes nothing.
+Reading is for every role; changes are for admins and each leaves an audit entry (refused ones
+too, with the reason). A refused change sends nothing and changes nothing.
 """
 
 from __future__ import annotations
 
-import logging
+from collections.abc import Callable
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Depends, HTTPException, Path, Request, status
 
 from protocol import messages as m
 from protocol.units import MPS_PER_KMH
-from trackside.api.deps import AdminUser, ObserverUser
+from trackside.api.deps import AdminUser, AuditDep, ObserverUser
 from trackside.api.schemas import MovementAuthorityPublic, RefusedPublic, SpeedRestrictionCreate
 from trackside.models import User
 from trackside.rbc import MovementAuthorityIssue, RbcEmulator
@@ -22,8 +22,6 @@ from trackside.rbc_rules import speed_restriction
 __all__ = ["router"]
 
 router = APIRouter(prefix="/rbc", tags=["rbc"])
-
-_audit = logging.getLogger("trackside.audit")
 
 VehiclePath = Annotated[
     str, Path(pattern=r"^[A-Za-z0-9_-]{1,32}$", description="Vehicle id", examples=["URV1"])
@@ -60,16 +58,22 @@ def _public(rbc: RbcEmulator, message: m.MovementAuthorityMessage) -> MovementAu
     )
 
 
-def _audited(user: User, message: m.MovementAuthorityMessage) -> None:
-    authority = message.authority
-    _audit.info(
-        "user=%s action=rbc.%s vehicle=%s ma_id=%d eoa_m=%s",
-        user.username,
-        message.change.value,
-        message.vehicle_id,
-        message.ma_id,
-        "none" if authority is None else f"{authority.end_of_authority_m:g}",
-    )
+def _changed(
+    trail: AuditDep,
+    user: User,
+    vehicle_id: str,
+    action: str,
+    request: dict[str, Any],
+    change: Callable[[], m.MovementAuthorityMessage],
+) -> m.MovementAuthorityMessage:
+    """Make an MA change, audited with the MA's id and EoA once sent (or the refusal)."""
+    with trail.action(user.username, action, vehicle_id=vehicle_id, request=request) as note:
+        message = change()
+        authority = message.authority
+        note.request["ma_id"] = message.ma_id
+        if authority is not None:
+            note.request["end_of_authority_m"] = authority.end_of_authority_m
+    return message
 
 
 @router.get("/{vehicle_id}/ma", responses=NOT_FOUND)
@@ -88,67 +92,81 @@ def read_movement_authority(
 
 @router.post("/{vehicle_id}/ma", status_code=status.HTTP_201_CREATED, responses=REFUSED)
 def issue_movement_authority(
-    vehicle_id: VehiclePath, body: MovementAuthorityIssue, rbc: RbcDep, user: AdminUser
+    vehicle_id: VehiclePath,
+    body: MovementAuthorityIssue,
+    rbc: RbcDep,
+    user: AdminUser,
+    trail: AuditDep,
 ) -> MovementAuthorityPublic:
     """Issue a new MA to the vehicle (admin only), replacing any it holds."""
-    message = rbc.issue(vehicle_id, body)
-    _audited(user, message)
+    request = body.model_dump(mode="json")
+    message = _changed(
+        trail, user, vehicle_id, "rbc.ma_issue", request, lambda: rbc.issue(vehicle_id, body)
+    )
     return _public(rbc, message)
 
 
 @router.post("/{vehicle_id}/ma/extend", responses={**NOT_FOUND, **REFUSED})
 def extend_movement_authority(
-    vehicle_id: VehiclePath, body: m.MovementAuthorityEnd, rbc: RbcDep, user: AdminUser
+    vehicle_id: VehiclePath,
+    body: m.MovementAuthorityEnd,
+    rbc: RbcDep,
+    user: AdminUser,
+    trail: AuditDep,
 ) -> MovementAuthorityPublic:
     """Move the EoA forward, with the new end's danger point, overlap and release speed."""
-    message = rbc.extend(vehicle_id, body)
-    _audited(user, message)
+    request = body.model_dump(mode="json")
+    message = _changed(
+        trail, user, vehicle_id, "rbc.ma_extend", request, lambda: rbc.extend(vehicle_id, body)
+    )
     return _public(rbc, message)
 
 
 @router.post("/{vehicle_id}/ma/shorten", responses={**NOT_FOUND, **REFUSED})
 def shorten_movement_authority(
-    vehicle_id: VehiclePath, body: m.MovementAuthorityEnd, rbc: RbcDep, user: AdminUser
+    vehicle_id: VehiclePath,
+    body: m.MovementAuthorityEnd,
+    rbc: RbcDep,
+    user: AdminUser,
+    trail: AuditDep,
 ) -> MovementAuthorityPublic:
     """Move the EoA back; refused (409) if it would fall at or behind the vehicle's front end."""
-    message = rbc.shorten(vehicle_id, body)
-    _audited(user, message)
+    request = body.model_dump(mode="json")
+    message = _changed(
+        trail, user, vehicle_id, "rbc.ma_shorten", request, lambda: rbc.shorten(vehicle_id, body)
+    )
     return _public(rbc, message)
 
 
 @router.delete("/{vehicle_id}/ma", responses={**NOT_FOUND, **REFUSED})
 def revoke_movement_authority(
-    vehicle_id: VehiclePath, rbc: RbcDep, user: AdminUser
+    vehicle_id: VehiclePath, rbc: RbcDep, user: AdminUser, trail: AuditDep
 ) -> MovementAuthorityPublic:
     """Revoke the vehicle's MA (admin only); the onboard applies it as an emergency stop."""
-    message = rbc.revoke(vehicle_id)
-    _audited(user, message)
+    message = _changed(trail, user, vehicle_id, "rbc.ma_revoke", {}, lambda: rbc.revoke(vehicle_id))
     return _public(rbc, message)
 
 
 @router.post("/{vehicle_id}/tsr", status_code=status.HTTP_201_CREATED, responses=REFUSED)
 def issue_speed_restriction(
-    vehicle_id: VehiclePath, body: SpeedRestrictionCreate, rbc: RbcDep, user: AdminUser
+    vehicle_id: VehiclePath,
+    body: SpeedRestrictionCreate,
+    rbc: RbcDep,
+    user: AdminUser,
+    trail: AuditDep,
 ) -> m.SpeedRestrictionMessage:
     """Send a temporary speed restriction to the vehicle (admin only)."""
-    message = speed_restriction(
-        vehicle_id,
-        restriction_id=body.id,
-        line_id=body.line_id,
-        start_m=body.start_m,
-        end_m=body.end_m,
-        speed_mps=body.speed_kmh * MPS_PER_KMH,
-    )
-    rbc.restrict_speed(vehicle_id, message)
-    _audit.info(
-        "user=%s action=rbc.tsr vehicle=%s tsr=%s %g..%g m %g km/h",
-        user.username,
-        vehicle_id,
-        body.id,
-        body.start_m,
-        body.end_m,
-        body.speed_kmh,
-    )
+    request = body.model_dump(mode="json")
+    with trail.action(user.username, "rbc.tsr_issue", vehicle_id=vehicle_id, request=request):
+        message = speed_restriction(
+            vehicle_id,
+            restriction_id=body.id,
+            line_id=body.line_id,
+            start_m=body.start_m,
+            end_m=body.end_m,
+            speed_mps=body.speed_kmh * MPS_PER_KMH,
+        )
+        rbc.restrict_speed(vehicle_id, message)
     return message
 
 
@@ -161,21 +179,18 @@ def revoke_speed_restriction(
     end_m: float,
     rbc: RbcDep,
     user: AdminUser,
+    trail: AuditDep,
 ) -> m.SpeedRestrictionMessage:
     """Revoke a temporary speed restriction on the vehicle (admin only)."""
-    message = speed_restriction(
-        vehicle_id,
-        restriction_id=restriction_id,
-        line_id=line_id,
-        start_m=start_m,
-        end_m=end_m,
-        speed_mps=None,
-    )
-    rbc.restrict_speed(vehicle_id, message)
-    _audit.info(
-        "user=%s action=rbc.tsr_revoked vehicle=%s tsr=%s",
-        user.username,
-        vehicle_id,
-        restriction_id,
-    )
+    request = {"id": restriction_id, "line_id": line_id, "start_m": start_m, "end_m": end_m}
+    with trail.action(user.username, "rbc.tsr_revoke", vehicle_id=vehicle_id, request=request):
+        message = speed_restriction(
+            vehicle_id,
+            restriction_id=restriction_id,
+            line_id=line_id,
+            start_m=start_m,
+            end_m=end_m,
+            speed_mps=None,
+        )
+        rbc.restrict_speed(vehicle_id, message)
     return message

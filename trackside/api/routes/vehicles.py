@@ -9,6 +9,7 @@ from fastapi import APIRouter, HTTPException, Path, Query, status
 from protocol import messages as m
 from protocol.units import MPS_PER_KMH
 from trackside.api.deps import (
+    AuditDep,
     BridgeDep,
     CommandsDep,
     DriverUser,
@@ -31,7 +32,7 @@ from trackside.api.schemas import (
     TrainHoldRequest,
     VehiclePublic,
 )
-from trackside.services import audit, history, holds
+from trackside.services import history, holds
 
 __all__ = ["router"]
 
@@ -89,37 +90,23 @@ def read_vehicle(
 
 @router.post("/{vehicle_id}/select", responses={404: {}, 409: {}})
 def select_vehicle(
-    vehicle_id: VehiclePath, bridge: BridgeDep, db: SessionDep, user: DriverUser
+    vehicle_id: VehiclePath, bridge: BridgeDep, db: SessionDep, user: DriverUser, trail: AuditDep
 ) -> HoldPublic:
     """Hold the vehicle: from now on only this user's commands reach it (idempotent)."""
-    if bridge.snapshot(vehicle_id) is None:
-        raise HTTPException(status_code=status.HTTP_404_NOT_FOUND, detail="no such vehicle")
-    hold = holds.select_vehicle(db, vehicle_id, user)
-    db.add(
-        audit.audit_entry(
-            user=user.username,
-            vehicle_id=vehicle_id,
-            action="select",
-            request={},
-            result=audit.AuditResult.ACCEPTED,
-        )
-    )
+    with trail.action(user.username, "select", vehicle_id=vehicle_id):
+        if bridge.snapshot(vehicle_id) is None:
+            raise HTTPException(status_code=status.HTTP_404_NOT_FOUND, detail="no such vehicle")
+        hold = holds.select_vehicle(db, vehicle_id, user)
     return HoldPublic(vehicle_id=vehicle_id, holder=hold.username, since=hold.since)
 
 
 @router.post("/{vehicle_id}/release", responses={409: {}})
-def release_vehicle(vehicle_id: VehiclePath, db: SessionDep, user: DriverUser) -> HoldPublic:
+def release_vehicle(
+    vehicle_id: VehiclePath, db: SessionDep, user: DriverUser, trail: AuditDep
+) -> HoldPublic:
     """Give the vehicle up (an admin may release anyone's hold)."""
-    holds.release(db, vehicle_id, user)
-    db.add(
-        audit.audit_entry(
-            user=user.username,
-            vehicle_id=vehicle_id,
-            action="release",
-            request={},
-            result=audit.AuditResult.ACCEPTED,
-        )
-    )
+    with trail.action(user.username, "release", vehicle_id=vehicle_id):
+        holds.release(db, vehicle_id, user)
     return HoldPublic(vehicle_id=vehicle_id, holder=None)
 
 
