@@ -3,19 +3,22 @@ and PostgreSQL."""
 
 from __future__ import annotations
 
+import json
 import threading
 from collections.abc import Iterator
 from datetime import UTC, datetime
+from typing import cast
 
 import pytest
-from sqlalchemy import Engine, text
+from sqlalchemy import Engine, select, text
+from sqlalchemy.exc import OperationalError
 from sqlalchemy.orm import Session, sessionmaker
 from typer.testing import CliRunner
 
 from deploy.cli import app
 from trackside.db import create_database_engine, migrate
 from trackside.models import AuditEntry
-from trackside.recorder import Recorder
+from trackside.recorder import AuditWriter, Recorder
 from trackside.services.audit import AuditResult, audit_entry, record
 
 
@@ -128,3 +131,65 @@ def test_the_entries_of_an_older_log_are_chained_by_the_migration(database_url: 
     code, output = _verify(database_url)
     assert code == 0, output
     assert "4 entries chained" in output
+
+
+def test_the_recorder_never_drops_an_audit_entry_when_its_queue_is_full(
+    engine: Engine, database_url: str
+) -> None:
+    factory = sessionmaker(engine, class_=Session, expire_on_commit=False)
+    recorder = Recorder(factory, capacity=1)
+    for index in range(50):
+        assert recorder.offer(_entry(index, user="simulated-operator"))
+    assert recorder.flush(10.0)
+    recorder.close()
+    assert recorder.stats.dropped == 0
+    assert recorder.audit.stats.written == 50
+    code, output = _verify(database_url)
+    assert code == 0, output
+    assert "50 entries chained" in output
+
+
+class _Outage:
+    """The database unreachable for the first ``failures`` transactions, then back."""
+
+    def __init__(self, factory: sessionmaker[Session], failures: int) -> None:
+        self._factory = factory
+        self.failures = failures
+
+    def __call__(self) -> Session:
+        if self.failures > 0:
+            self.failures -= 1
+            raise OperationalError("connect", {}, ConnectionError("database unreachable"))
+        return self._factory()
+
+
+def test_the_audit_writer_retries_through_an_outage_in_order(
+    engine: Engine, database_url: str
+) -> None:
+    outage = _Outage(sessionmaker(engine, class_=Session, expire_on_commit=False), failures=3)
+    writer = AuditWriter(cast("sessionmaker[Session]", outage), retry_s=0.01)
+    for index in range(5):
+        writer.offer(_entry(index))
+    assert writer.flush(10.0)
+    writer.close()
+    assert writer.stats.failed_writes == 3
+    assert (writer.stats.written, writer.stats.unwritten_at_close) == (5, 0)
+    with Session(engine) as db:
+        speeds = [json.loads(e.request)["target_speed_mps"] for e in db.scalars(select(AuditEntry))]
+    assert speeds == [0.0, 1.0, 2.0, 3.0, 4.0]
+    code, output = _verify(database_url)
+    assert code == 0, output
+
+
+def test_an_entry_still_unwritten_when_the_writer_stops_is_logged_in_full(
+    engine: Engine, caplog: pytest.LogCaptureFixture
+) -> None:
+    outage = _Outage(sessionmaker(engine, class_=Session, expire_on_commit=False), failures=10**6)
+    writer = AuditWriter(cast("sessionmaker[Session]", outage), retry_s=0.01)
+    writer.offer(_entry(7))
+    writer.close(timeout_s=2.0)
+    assert writer.stats.unwritten_at_close == 1
+    assert any(
+        "audit entry not written" in r.message and '"target_speed_mps": 7.0' in r.message
+        for r in caplog.records
+    )
