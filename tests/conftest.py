@@ -18,8 +18,13 @@ from sqlalchemy.engine import make_url
 from deploy.ports import loopback_endpoint
 from protocol import ZenohSettings, open_session
 from protocol.router import run_router
+from trackside.security import ScryptCost, use_password_cost
 
 WAIT_S = 5.0
+TEST_PASSWORD_COST = ScryptCost(n=2**10, r=8, p=1)
+"""The scrypt cost of the passwords the suite hashes (1 MiB, about 2 ms): at the service's own
+(N = 2^17, 0.4-0.7 s a hash here) its few hundred users and logins would take minutes
+(docs/security.md). tests/trackside/test_passwords.py hashes at the real cost."""
 
 # No wall-clock deadline on hypothesis examples: the suite asserts behaviour, not speed, and a
 # loaded machine (CI, a campaign alongside) makes a 200 ms deadline fail at random. The inner
@@ -40,6 +45,13 @@ def wait_for(
             return True
         idle.wait(step_s)
     return predicate()
+
+
+@pytest.fixture(autouse=True, scope="session")
+def cheap_password_hashes() -> Iterator[None]:
+    """Hash the suite's passwords at :data:`TEST_PASSWORD_COST` (test-only)."""
+    with use_password_cost(TEST_PASSWORD_COST):
+        yield
 
 
 @pytest.fixture

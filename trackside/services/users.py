@@ -21,7 +21,13 @@ from trackside.errors import (
     PermissionDeniedError,
 )
 from trackside.models import ApiToken, Role, User
-from trackside.security import hash_password, new_token, token_digest, verify_password
+from trackside.security import (
+    hash_password,
+    needs_rehash,
+    new_token,
+    token_digest,
+    verify_password,
+)
 
 __all__ = [
     "authenticate",
@@ -83,6 +89,8 @@ def authenticate(db: Session, username: str, password: str) -> User:
         raise AuthenticationError("wrong username or password")
     if user.disabled:  # said only to who knows the password
         raise AuthenticationError(f"user {username!r} is disabled")
+    if needs_rehash(user.password_hash):  # made at an older cost: upgraded in place
+        user.password_hash = hash_password(password)
     return user
 
 
