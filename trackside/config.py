@@ -34,6 +34,13 @@ class Settings(BaseSettings):
     admin_user: str | None = None
     admin_password: SecretStr | None = None
     token_ttl_s: float = Field(default=12 * 3600.0, gt=0, description="Bearer token life [s]")
+    hold_lease_s: float = Field(
+        default=60.0,
+        gt=0,
+        le=24 * 3600.0,
+        description="A driver's hold on a vehicle lasts this long unless renewed (by selecting "
+        "again, by each command, while the driver's console is connected) [s]",
+    )
     webui_dir: Path = DEFAULT_WEBUI_DIR
     fleet_push_period_s: float = Field(default=0.2, gt=0, description="WebSocket push [s]")
     seed_lines: bool = Field(

@@ -211,7 +211,12 @@ def _start_bridge(
     app.state.bridge = bridge
     bridge.observe(status=recorder.offer_status, event=recorder.offer_event)
     bridge.observe(status=hub.publish_status, event=hub.publish_event)
-    app.state.commands = CommandService(factory, bridge, timeout_s=settings.command_timeout_s)
+    app.state.commands = CommandService(
+        factory,
+        bridge,
+        timeout_s=settings.command_timeout_s,
+        hold_lease_s=settings.hold_lease_s,
+    )
     return bridge
 
 

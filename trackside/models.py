@@ -90,13 +90,17 @@ class JourneyRow(Base):
 
 
 class VehicleHold(Base):
-    """Who holds a vehicle: only the holder's commands reach it (one driver at a time)."""
+    """Who holds a vehicle: only the holder's commands reach it (one driver at a time), until
+    the lease expires."""
 
     __tablename__ = "vehicle_holds"
 
     vehicle_id: Mapped[str] = mapped_column(String(32), primary_key=True)
     username: Mapped[str] = mapped_column(String(64), nullable=False)
     since: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False)
+    expires_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), nullable=False)
+    """The end of the hold's lease: renewed by the holder selecting again, by each command they
+    send and while their console is connected; after it, the vehicle is free."""
 
 
 class AuditEntry(Base):

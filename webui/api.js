@@ -40,9 +40,19 @@ export function errorText(answer) {
   return `HTTP ${answer.status}`;
 }
 
-export function socketUrl(path) {
+/** A WebSocket to the API. The bearer token goes in the first message, never in the URL (URLs
+ * end up in logs); the trackside closes the socket with 1008 when it is missing or invalid. */
+export function openSocket(path) {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
-  return `${scheme}://${location.host}/api/v1${path}?token=${encodeURIComponent(token.get())}`;
+  const socket = new WebSocket(`${scheme}://${location.host}/api/v1${path}`);
+  socket.addEventListener("open", () => socket.send(JSON.stringify({ type: "auth", token: token.get() })));
+  return socket;
+}
+
+/** A lease's end as local wall-clock time (HH:MM:SS), or "" for none. */
+export function leaseEnd(isoTime) {
+  if (!isoTime) return "";
+  return new Date(isoTime).toLocaleTimeString([], { hour: "2-digit", minute: "2-digit", second: "2-digit", hour12: false });
 }
 
 export const kmh = (mps) => (mps === null || mps === undefined ? null : mps * 3.6);

@@ -1,6 +1,6 @@
 // Entry point of the ATO-TS console: sign-in, and the views by URL hash
 // (#/fleet, #/vehicle/ID, #/planner, #/report/ID). Plain ES modules, no build step.
-import { api, setUnauthorisedHandler, token } from "./api.js";
+import { leaseEnd, openSocket, setUnauthorisedHandler, token } from "./api.js";
 import { DriverView } from "./driver.js";
 import { FleetView } from "./fleet.js";
 import { PlannerView } from "./planner.js";
@@ -14,6 +14,37 @@ function setConnection(online) {
   badge.className = "badge " + (online ? "on" : "off");
 }
 
+/** The console's session socket, open whatever the view: while it is, the trackside renews this
+ * user's vehicle holds (a closed or crashed console loses them when their lease ends). */
+class Presence {
+  constructor() { this.socket = null; this.retry = null; }
+
+  open() {
+    this.socket = openSocket("/ws/session");
+    this.socket.onmessage = (event) => {
+      const frame = JSON.parse(event.data);
+      if (frame.type === "holds") showHolds(frame.holds);
+    };
+    this.socket.onclose = (event) => {
+      this.socket = null;
+      if (event.code === 1008) { if (token.get()) signOut(); return; }
+      this.retry = setTimeout(() => this.open(), 1000);
+    };
+  }
+
+  close() {
+    clearTimeout(this.retry);
+    if (this.socket) { this.socket.onclose = null; this.socket.close(); this.socket = null; }
+    showHolds({});
+  }
+}
+
+function showHolds(holds) {
+  const held = Object.entries(holds).map(([vehicle, until]) => `${vehicle} (lease to ${leaseEnd(until)})`);
+  $("#holding").textContent = held.length ? `holding ${held.join(", ")}` : "";
+}
+
+const presence = new Presence();
 const views = {
   fleet: new FleetView(setConnection),
   driver: new DriverView(setConnection),
@@ -40,6 +71,7 @@ function signedIn(visible) {
 
 function start() {
   signedIn(true);
+  presence.open();
   route();
 }
 
@@ -48,6 +80,7 @@ function signOut() {
   token.clear();
   if (current) current.hide();
   current = null;
+  presence.close();
   setConnection(false);
   signedIn(false);
   if (saved) fetch("/api/v1/auth/logout", { method: "POST", headers: { Authorization: `Bearer ${saved}` } });

@@ -1,5 +1,5 @@
 // Driver console for one vehicle: hold it, watch it live, command it, answer its Vital Control.
-import { api, element, errorText, fixed, kmh, socketUrl } from "./api.js";
+import { api, element, errorText, fixed, kmh, leaseEnd, openSocket } from "./api.js";
 import { draw, line } from "./charts.js";
 import { TrackStrip } from "./track.js";
 
@@ -94,7 +94,7 @@ export class DriverView {
     if (!vehicle.ok) {
       $("#driver-message").textContent = `Vehicle ${vehicleId}: ${errorText(vehicle)}`;
     } else {
-      this.onVehicle(vehicle.data.status, vehicle.data.holder, vehicle.data.simulated_operator);
+      this.onVehicle(vehicle.data.status, vehicle.data.holder, vehicle.data.simulated_operator, vehicle.data.hold_expires_at);
     }
     this.loadJourneys();
     this.loadEvents();
@@ -112,11 +112,11 @@ export class DriverView {
 
   connect() {
     let opened = false;
-    this.socket = new WebSocket(socketUrl(`/ws/vehicles/${encodeURIComponent(this.vehicleId)}`));
+    this.socket = openSocket(`/ws/vehicles/${encodeURIComponent(this.vehicleId)}`);
     this.socket.onopen = () => { opened = true; this.setConnection(true); };
     this.socket.onmessage = (event) => {
       const frame = JSON.parse(event.data);
-      if (frame.type === "status") this.onVehicle(frame.status, frame.holder, frame.simulated_operator);
+      if (frame.type === "status") this.onVehicle(frame.status, frame.holder, frame.simulated_operator, frame.hold_expires_at);
       else if (frame.type === "event") this.addEvent(frame.event);
     };
     this.socket.onclose = (event) => {
@@ -134,7 +134,7 @@ export class DriverView {
     $("#connection").textContent = "polling";
     const tick = async () => {
       const answer = await api(`/vehicles/${encodeURIComponent(this.vehicleId)}`);
-      if (answer.ok) this.onVehicle(answer.data.status, answer.data.holder, answer.data.simulated_operator);
+      if (answer.ok) this.onVehicle(answer.data.status, answer.data.holder, answer.data.simulated_operator, answer.data.hold_expires_at);
     };
     this.timers.push(setInterval(tick, POLL_MS));
     this.timers.push(setInterval(() => this.loadEvents(EVENT_POLL_LIMIT), EVENT_POLL_MS));
@@ -199,15 +199,18 @@ export class DriverView {
     while (body.children.length > 300) body.lastChild.remove();
   }
 
-  showHolder(holder) {
+  showHolder(holder, expiresAt) {
     const badge = $("#driver-holder");
     badge.textContent = holder ? `held by ${holder}` : "not held";
     badge.dataset.holder = holder || "";
     badge.className = "badge " + (holder ? "on" : "neutral");
+    const lease = $("#driver-lease");
+    lease.textContent = holder && expiresAt ? `lease to ${leaseEnd(expiresAt)}` : "";
+    lease.dataset.expiresAt = (holder && expiresAt) || "";
   }
 
-  onVehicle(status, holder, simulatedOperator) {
-    this.showHolder(holder);
+  onVehicle(status, holder, simulatedOperator, holdExpiresAt) {
+    this.showHolder(holder, holdExpiresAt);
     const operator = $("#simulated-operator");
     if (simulatedOperator === true || simulatedOperator === false) {
       operator.dataset.simulated = String(simulatedOperator);
@@ -342,7 +345,7 @@ export class DriverView {
     const node = $("#driver-message");
     node.dataset.ok = String(answer.ok);
     node.textContent = answer.ok ? `${action}: ${answer.data.holder ? `held by ${answer.data.holder}` : "released"}` : `${action}: ${errorText(answer)}`;
-    if (answer.ok) this.showHolder(answer.data.holder);
+    if (answer.ok) this.showHolder(answer.data.holder, answer.data.expires_at);
   }
 
   async sendJourney() {

@@ -1,5 +1,5 @@
 // Fleet overview: every vehicle seen, pushed over WS /api/v1/ws/fleet.
-import { api, element, fixed, kmh, socketUrl } from "./api.js";
+import { api, element, fixed, kmh, leaseEnd, openSocket } from "./api.js";
 
 function cell(text, numeric, field) {
   const td = element("td", { text: text });
@@ -33,6 +33,7 @@ export function renderFleet(vehicles) {
       cell(s ? s.sc_state : "–"),
       cell(s ? fixed(s.sim_time_s) : "–", true),
       cell(vehicle.holder || "–", false, "holder"),
+      cell(vehicle.holder ? leaseEnd(vehicle.hold_expires_at) : "–", false, "lease"),
       operatorCell(vehicle.simulated_operator),
       element("td", {}, element("a", { href: `#/vehicle/${encodeURIComponent(vehicle.id)}`, dataset: { open: vehicle.id }, text: "Drive" })),
     );
@@ -54,7 +55,7 @@ export class FleetView {
   }
 
   connect() {
-    this.socket = new WebSocket(socketUrl("/ws/fleet"));
+    this.socket = openSocket("/ws/fleet");
     this.socket.onopen = () => this.setConnection(true);
     this.socket.onmessage = (event) => {
       const frame = JSON.parse(event.data);

@@ -169,11 +169,12 @@ def _rest_worker(
             count += 1
 
 
-def _live_client(url: str, seconds: float, out: list[float]) -> None:
+def _live_client(url: str, token: str, seconds: float, out: list[float]) -> None:
     from websockets.sync.client import connect
 
     deadline = time.monotonic() + seconds
     with connect(url) as socket:
+        socket.send(json.dumps({"type": "auth", "token": token}))  # never in the URL
         while time.monotonic() < deadline:
             try:
                 frame = json.loads(socket.recv(timeout=1.0))
@@ -210,8 +211,8 @@ def load_process(
         threading.Thread(
             target=_live_client,
             args=(
-                f"{ws_base}/api/v1/ws/vehicles/{_vehicle_id(index * vehicles // max(1, sockets))}"
-                f"?token={token}",
+                f"{ws_base}/api/v1/ws/vehicles/{_vehicle_id(index * vehicles // max(1, sockets))}",
+                token,
                 seconds,
                 live[index],
             ),

@@ -343,18 +343,19 @@ def test_vehicle_websocket_pushes_status_and_events(service: TestClient) -> None
     assert service.post(f"{V}/release", headers=admin).status_code == 200
     assert service.post(f"{V}/select", headers=alice).status_code == 200
     token = alice["Authorization"].removeprefix("Bearer ")
-    with (
-        pytest.raises(WebSocketDisconnect) as refused,
-        service.websocket_connect("/api/v1/ws/vehicles/URV1?token=wrong") as socket,
-    ):
-        socket.receive_json()
+    with service.websocket_connect("/api/v1/ws/vehicles/URV1") as socket:
+        socket.send_json({"type": "auth", "token": "wrong"})
+        with pytest.raises(WebSocketDisconnect) as refused:
+            socket.receive_json()
     assert refused.value.code == 1008
-    with service.websocket_connect(f"/api/v1/ws/vehicles/URV1?token={token}") as socket:
+    with service.websocket_connect("/api/v1/ws/vehicles/URV1") as socket:
+        socket.send_json({"type": "auth", "token": token})
         frame = socket.receive_json()
         while frame["type"] != "status":
             frame = socket.receive_json()
         assert frame["status"]["vehicle_id"] == "URV1"
         assert frame["holder"] == "alice"
+        assert frame["hold_expires_at"] is not None
         assert frame["simulated_operator"] is False
         assert "operator_requests" in frame["status"]["vital_control"]
         # The operator's emergency brake is accepted in every state (a train hold is refused

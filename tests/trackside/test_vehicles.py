@@ -99,8 +99,9 @@ def test_fleet_websocket_pushes_live_vehicles(
     bearer = admin_headers["Authorization"].split()[1]
     with (
         TypedPublisher(onboard, STATUS, vehicle="URV5") as publisher,
-        client.websocket_connect(f"/api/v1/ws/fleet?token={bearer}") as websocket,
+        client.websocket_connect("/api/v1/ws/fleet") as websocket,
     ):
+        websocket.send_json({"type": "auth", "token": bearer})
         positions: list[float] = []
         for frame_index in range(40):
             publisher.put(_status("URV5", 10.0 * frame_index))
@@ -117,11 +118,10 @@ def test_fleet_websocket_pushes_live_vehicles(
 
 @pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
 def test_fleet_websocket_refuses_a_bad_token(client: TestClient) -> None:
-    with (
-        pytest.raises(WebSocketDisconnect) as caught,
-        client.websocket_connect("/api/v1/ws/fleet?token=wrong") as websocket,
-    ):
-        websocket.receive_json()
+    with client.websocket_connect("/api/v1/ws/fleet") as websocket:
+        websocket.send_json({"type": "auth", "token": "wrong"})
+        with pytest.raises(WebSocketDisconnect) as caught:
+            websocket.receive_json()
     assert caught.value.code == 1008
 
 

@@ -125,6 +125,9 @@ class VehiclePublic(BaseModel):
     alive: bool
     status: VehicleStatusPublic | None
     holder: str | None = Field(default=None, description="The user holding the vehicle")
+    hold_expires_at: datetime | None = Field(
+        default=None, description="When the holder's lease ends unless renewed (UTC)"
+    )
     simulated_operator: bool = Field(
         default=False, description="The trackside's simulated operator answers its VC requests"
     )
@@ -135,6 +138,7 @@ class VehiclePublic(BaseModel):
         snapshot: VehicleSnapshot,
         *,
         holder: str | None = None,
+        hold_expires_at: datetime | None = None,
         simulated_operator: bool = False,
     ) -> VehiclePublic:
         report = snapshot.status
@@ -151,14 +155,20 @@ class VehiclePublic(BaseModel):
             alive=snapshot.alive,
             status=status,
             holder=holder,
+            hold_expires_at=hold_expires_at,
             simulated_operator=simulated_operator,
         )
 
 
 class HoldPublic(BaseModel):
+    """A vehicle's hold after selecting or releasing it: the holder and their lease."""
+
     vehicle_id: str
     holder: str | None
     since: datetime | None = None
+    expires_at: datetime | None = Field(
+        default=None, description="When the lease ends unless renewed (UTC)"
+    )
 
 
 class CommandAckPublic(BaseModel):

@@ -39,11 +39,17 @@ class CommandService:
     """Sends commands and journey profiles for users who hold the vehicle."""
 
     def __init__(
-        self, factory: sessionmaker[Session], bridge: ZenohBridge, *, timeout_s: float
+        self,
+        factory: sessionmaker[Session],
+        bridge: ZenohBridge,
+        *,
+        timeout_s: float,
+        hold_lease_s: float = holds.DEFAULT_LEASE_S,
     ) -> None:
         self._factory = factory
         self._bridge = bridge
         self.timeout_s = timeout_s
+        self.hold_lease_s = hold_lease_s
         # Unique across restarts of the service, so a vehicle never sees an id twice.
         self._ids = itertools.count(time.time_ns() // 1000)
 
@@ -72,8 +78,8 @@ class CommandService:
             raise NotFoundError(f"{vehicle_id} is not alive")
         if not needs_hold:
             return
-        with self._factory() as db:
-            holds.check_holder(db, vehicle_id, user)
+        with self._factory() as db, db.begin():  # the holder's command renews the lease
+            holds.check_holder(db, vehicle_id, user, lease_s=self.hold_lease_s)
 
     def send(self, user: User, vehicle_id: str, body: m.CommandBody) -> m.CommandAck:
         """Send ``body`` to the vehicle and return its acknowledgement (accepted or refused).

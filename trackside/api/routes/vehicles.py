@@ -15,6 +15,7 @@ from trackside.api.deps import (
     DriverUser,
     ObserverUser,
     SessionDep,
+    SettingsDep,
     SimulatedDep,
 )
 from trackside.api.schemas import (
@@ -52,13 +53,14 @@ COMMAND_ERRORS: dict[int | str, dict[str, Any]] = {
 def list_vehicles(
     bridge: BridgeDep, db: SessionDep, simulated: SimulatedDep, _user: ObserverUser
 ) -> list[VehiclePublic]:
-    """List every vehicle seen, whether alive, its holder, and the latest status of the alive
-    ones."""
+    """List every vehicle seen, whether alive, its holder and the end of their lease, and the
+    latest status of the alive ones."""
     held = holds.holders(db)
     return [
         VehiclePublic.from_snapshot(
             snapshot,
             holder=held[snapshot.id].username if snapshot.id in held else None,
+            hold_expires_at=holds.expires_at(held[snapshot.id]) if snapshot.id in held else None,
             simulated_operator=snapshot.id in simulated,
         )
         for snapshot in bridge.fleet()
@@ -81,6 +83,7 @@ def read_vehicle(
     return VehiclePublic.from_snapshot(
         snapshot,
         holder=None if hold is None else hold.username,
+        hold_expires_at=None if hold is None else holds.expires_at(hold),
         simulated_operator=vehicle_id in simulated,
     )
 
@@ -90,14 +93,25 @@ def read_vehicle(
 
 @router.post("/{vehicle_id}/select", responses={404: {}, 409: {}})
 def select_vehicle(
-    vehicle_id: VehiclePath, bridge: BridgeDep, db: SessionDep, user: DriverUser, trail: AuditDep
+    vehicle_id: VehiclePath,
+    bridge: BridgeDep,
+    db: SessionDep,
+    settings: SettingsDep,
+    user: DriverUser,
+    trail: AuditDep,
 ) -> HoldPublic:
-    """Hold the vehicle: from now on only this user's commands reach it (idempotent)."""
+    """Hold the vehicle: from now on only this user's commands reach it, until the lease ends
+    (renewed by selecting again, by each command and while the user's console is connected)."""
     with trail.action(user.username, "select", vehicle_id=vehicle_id):
         if bridge.snapshot(vehicle_id) is None:
             raise HTTPException(status_code=status.HTTP_404_NOT_FOUND, detail="no such vehicle")
-        hold = holds.select_vehicle(db, vehicle_id, user)
-    return HoldPublic(vehicle_id=vehicle_id, holder=hold.username, since=hold.since)
+        hold = holds.select_vehicle(db, vehicle_id, user, lease_s=settings.hold_lease_s)
+    return HoldPublic(
+        vehicle_id=vehicle_id,
+        holder=hold.username,
+        since=hold.since,
+        expires_at=holds.expires_at(hold),
+    )
 
 
 @router.post("/{vehicle_id}/release", responses={409: {}})
