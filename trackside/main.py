@@ -37,6 +37,7 @@ from trackside.config import Settings
 from trackside.db import create_database_engine, migrate
 from trackside.edge import EdgeMiddleware
 from trackside.live import LiveHub
+from trackside.log_redaction import install_token_redaction
 from trackside.models import AuditEntry, Role
 from trackside.ratelimit import LoginLimiter
 from trackside.rbc import LineInfo, RbcEmulator
@@ -247,6 +248,7 @@ def _lifespan(settings: Settings, zenoh_session: zenoh.Session | None) -> Lifesp
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        install_token_redaction()  # after uvicorn has set its logging up
         script = None if settings.rbc_scenario is None else load_scenario(settings.rbc_scenario)
         engine = create_database_engine(settings.database_url)
         factory = _prepare_database(settings, engine)
