@@ -9,18 +9,35 @@ authentication and body parsing:
   buffer an unbounded body;
 - every HTTP response carries ``X-Content-Type-Options: nosniff``, ``X-Frame-Options: DENY``,
   ``Referrer-Policy: no-referrer`` and ``Cross-Origin-Opener-Policy: same-origin``, and the
-  API's answers ``Cache-Control: no-store`` (they carry tokens and live state).
+  API's answers ``Cache-Control: no-store`` (they carry tokens and live state);
+- and a ``Content-Security-Policy`` (:func:`content_security_policy`): scripts, styles,
+  images, fonts and connections (the API's WebSockets included) from the service's own origin
+  only, no inline script, no plugins, no framing, forms posted only to itself; the only inline
+  styles allowed are those the charting library inserts, by their hashes
+  (:func:`inline_style_hashes`). The web console lives under it as it is
+  (``tests/browser/test_csp.py``); FastAPI's own API documentation pages (``/docs``,
+  ``/redoc``), which load Swagger UI and ReDoc from a CDN with an inline script, are the one
+  exception.
 """
 
 from __future__ import annotations
 
+import base64
+import hashlib
 import json
+import re
 from collections.abc import Awaitable, Callable, MutableMapping
 from typing import Any
 
 from starlette.exceptions import HTTPException
 
-__all__ = ["SECURITY_HEADERS", "EdgeMiddleware"]
+__all__ = [
+    "EMPTY_STYLE_HASH",
+    "SECURITY_HEADERS",
+    "EdgeMiddleware",
+    "content_security_policy",
+    "inline_style_hashes",
+]
 
 Scope = MutableMapping[str, Any]
 Message = MutableMapping[str, Any]
@@ -34,14 +51,52 @@ SECURITY_HEADERS: tuple[tuple[bytes, bytes], ...] = (
     (b"referrer-policy", b"no-referrer"),
     (b"cross-origin-opener-policy", b"same-origin"),
 )
+EMPTY_STYLE_HASH = "'sha256-47DEQpj8HBSa+/TImW+5JCeuQeRkm5NMpJWZG3hSuFU='"
+"""The CSP hash of an empty stylesheet: plotly creates an empty ``<style>`` and fills it
+through the CSSOM (``insertRule``), which CSP does not restrict."""
+_STYLE_TEXT = re.compile(r"""createElement\("style"\).{0,400}?\.textContent='([^'\\]*)'""", re.S)
+
+
+def inline_style_hashes(script: str) -> tuple[str, ...]:
+    """The CSP hash sources of the stylesheets ``script`` inserts as fixed text (a
+    ``<style>`` whose ``textContent`` is a string literal without escapes: plotly's bundled
+    map stylesheet), and of the empty one."""
+    hashes = [EMPTY_STYLE_HASH]
+    for match in _STYLE_TEXT.finditer(script):
+        digest = base64.b64encode(hashlib.sha256(match.group(1).encode()).digest()).decode()
+        hashes.append(f"'sha256-{digest}'")
+    return tuple(dict.fromkeys(hashes))
+
+
+def content_security_policy(style_hashes: tuple[str, ...] = ()) -> str:
+    """The policy of every answer: the service's own origin only, no inline script; inline
+    styles only those of ``style_hashes``. (``'self'`` covers the same origin's ``ws:`` and
+    ``wss:`` in connect-src, CSP level 3.)"""
+    styles = " ".join(("'self'", *style_hashes))
+    return (
+        f"default-src 'self'; script-src 'self'; style-src {styles}; img-src 'self' data:; "
+        "font-src 'self'; connect-src 'self'; object-src 'none'; base-uri 'none'; "
+        "frame-ancestors 'none'; form-action 'self'"
+    )
+
+
+_API_DOCUMENTATION = frozenset({"/docs", "/docs/oauth2-redirect", "/redoc"})
 
 
 class EdgeMiddleware:
     """See the module's docstring."""
 
-    def __init__(self, app: App, *, max_body_bytes: int) -> None:
+    def __init__(
+        self,
+        app: App,
+        *,
+        max_body_bytes: int,
+        policy: str | None = None,
+    ) -> None:
         self.app = app
         self.max_body_bytes = max_body_bytes
+        policy = content_security_policy() if policy is None else policy
+        self._csp_header = (b"content-security-policy", policy.encode())
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
@@ -51,7 +106,9 @@ class EdgeMiddleware:
         if declared is not None and (not declared.isdigit() or int(declared) > self.max_body_bytes):
             await self._too_large(send)
             return
-        no_store = str(scope.get("path", "")).startswith("/api/")
+        path = str(scope.get("path", ""))
+        no_store = path.startswith("/api/")
+        policy = () if path in _API_DOCUMENTATION else (self._csp_header,)
         received = 0
 
         async def limited() -> Message:
@@ -66,6 +123,7 @@ class EdgeMiddleware:
             if message["type"] == "http.response.start":
                 headers = list(message.get("headers") or [])
                 headers += SECURITY_HEADERS
+                headers += policy
                 if no_store:
                     headers.append((b"cache-control", b"no-store"))
                 message["headers"] = headers
@@ -84,6 +142,7 @@ class EdgeMiddleware:
                     (b"content-length", str(len(body)).encode()),
                     (b"connection", b"close"),
                     *SECURITY_HEADERS,
+                    self._csp_header,
                 ],
             }
         )

@@ -35,7 +35,7 @@ from trackside.api.routes import users as users_routes
 from trackside.bridge import ZenohBridge
 from trackside.config import Settings
 from trackside.db import create_database_engine, migrate
-from trackside.edge import EdgeMiddleware
+from trackside.edge import EdgeMiddleware, content_security_policy, inline_style_hashes
 from trackside.live import LiveHub
 from trackside.log_redaction import install_token_redaction
 from trackside.models import AuditEntry, Role
@@ -114,6 +114,14 @@ def _plotly_js() -> Path:
     """Where the installed ``plotly`` wheel keeps its browser bundle."""
     bundle = resources.files("plotly") / "package_data" / "plotly.min.js"
     return Path(str(bundle))
+
+
+def _console_policy() -> str:
+    """The Content-Security-Policy, letting in the stylesheets the charting library inserts
+    (by their hashes, read from the bundle served)."""
+    bundle = _plotly_js()
+    hashes = inline_style_hashes(bundle.read_text()) if bundle.is_file() else ()
+    return content_security_policy(hashes)
 
 
 def _operator_entry(
@@ -330,7 +338,9 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
         lifespan=_lifespan(settings, zenoh_session),
     )
     add_exception_handlers(app)
-    app.add_middleware(EdgeMiddleware, max_body_bytes=settings.max_body_bytes)
+    app.add_middleware(
+        EdgeMiddleware, max_body_bytes=settings.max_body_bytes, policy=_console_policy()
+    )
     app.include_router(_api_router())
     _add_health_route(app)
     _add_web_console(app, settings.webui_dir)
