@@ -117,6 +117,14 @@ def _command(name: str, body: dict[str, Any]) -> tuple[tuple[str, str], Call]:
     return ("POST", f"{V}/{name}"), Call("driver", "vehicle", json=lambda _: body, prepare=prepare)
 
 
+COMMANDS: dict[str, dict[str, Any]] = {
+    "engage": {},
+    "disengage": {},
+    "rd-target-speed": {"target_speed_kmh": 0.0},
+    "emergency-brake": {},
+    "skip-stop": {"timing_point_id": "east"},
+    "train-hold": {"hold": False},
+}
 CALLS: dict[tuple[str, str], Call] = {
     ("POST", "/api/v1/auth/token"): Call(
         "none", "one", "login", data=lambda _: {"username": ADMIN[0], "password": ADMIN[1]}
@@ -202,17 +210,7 @@ CALLS: dict[tuple[str, str], Call] = {
         "rbc.tsr_revoke",
         params={"line_id": "bologna-ring", "start_m": 4000.0, "end_m": 4200.0},
     ),
-} | dict(
-    _command(name, body)
-    for name, body in {
-        "engage": {},
-        "disengage": {},
-        "rd-target-speed": {"target_speed_kmh": 0.0},
-        "emergency-brake": {},
-        "skip-stop": {"timing_point_id": "east"},
-        "train-hold": {"hold": False},
-    }.items()
-)
+} | dict(_command(name, body) for name, body in COMMANDS.items())
 
 
 @pytest.fixture(
