@@ -25,6 +25,9 @@ def running_trackside(
         zenoh_connect=(router_endpoint,),
         admin_user=ADMIN[0],
         admin_password=ADMIN[1],
+        # The admin's hold must outlast a restart and a loaded machine's minute between two
+        # commands: these tests are not about leases (tests/trackside/test_hold_leases.py).
+        hold_lease_s=600.0,
     )
     with TestClient(create_app(settings)) as client:
         response = client.post(
