@@ -51,6 +51,10 @@ class TracksideHarness:
             simulated_operators=simulated,
             simulated_operator_reaction_s=spec.operator.reaction_s,
             simulated_operator_thread=False,
+            # The run's driver selects once and commands whenever the scenario says, however
+            # long the wall time in between: its hold must not lapse (a console renews its
+            # lease while open; this driver has no console).
+            hold_lease_s=24 * 3600.0,
         )
         self.client: TestClient | None = None
         self.headers: dict[str, str] = {}
