@@ -16,6 +16,7 @@ from typing import Any
 from pydantic import BaseModel
 
 from onboard.events import StackEvent
+from onboard.freshness import FreshnessGuard
 from onboard.stack import OnboardStack
 from onboard.vital_interface import NO_VITAL_CONTROL
 from protocol import messages as m
@@ -33,14 +34,24 @@ _INFO, _WARNING = m.EventSeverity.INFO, m.EventSeverity.WARNING
 class CommandDesk:
     """Takes the trackside's commands for ``vehicle_id`` and executes them on an
     :class:`~onboard.stack.OnboardStack`; ``now_s`` gives the simulated time for the
-    acknowledgements."""
+    acknowledgements; ``guard`` takes only the commands of the session held, each once (none:
+    every command is taken, for tests of the stack alone)."""
 
-    def __init__(self, stack: OnboardStack, vehicle_id: str, now_s: Callable[[], float]) -> None:
+    def __init__(
+        self,
+        stack: OnboardStack,
+        vehicle_id: str,
+        now_s: Callable[[], float],
+        guard: FreshnessGuard | None = None,
+    ) -> None:
         self.stack = stack
         self.vehicle_id = vehicle_id
         self._now_s = now_s
+        self._guard = guard
         self.rejected = 0
         """Commands refused on arrival."""
+        self._refusals: list[StackEvent] = []
+        """Commands refused as not fresh, logged at the next :meth:`execute_queued`."""
         self._queue: deque[m.Command] = deque()
         self._lock = threading.Lock()
         self._handlers: dict[type[BaseModel], _Handler] = {
@@ -56,7 +67,7 @@ class CommandDesk:
     def on_command(self, _chunks: dict[str, str], command: m.Command) -> m.CommandAck:
         """A command's acknowledgement on arrival (Zenoh's thread); one accepted is queued for
         :meth:`execute_queued` (a ping only answers)."""
-        reason = self.refusal(command)
+        reason = self._stale(command) or self.refusal(command)
         if reason is None and not isinstance(command.body, m.PingCommand):
             with self._lock:
                 self._queue.append(command)
@@ -70,6 +81,18 @@ class CommandDesk:
             sim_time_s=self._now_s(),
         )
 
+    def _stale(self, command: m.Command) -> str | None:
+        """Why the command is not of the session held or not new, if so (logged)."""
+        if self._guard is None or command.vehicle_id != self.vehicle_id:
+            return None
+        refusal = self._guard.admit(command.freshness)
+        if refusal is None:
+            return None
+        text = f"command {command.command_id} ({command.body.type}) refused: {refusal.value}"
+        with self._lock:
+            self._refusals.append(StackEvent(_WARNING, "session.refused", text))
+        return refusal.value
+
     def refusal(self, command: m.Command) -> str | None:
         """Why the command cannot be obeyed now, if it cannot (checked on arrival)."""
         if command.vehicle_id != self.vehicle_id:
@@ -78,7 +101,8 @@ class CommandDesk:
 
     def execute_queued(self, now_s: float) -> list[StackEvent]:
         """Execute the commands queued since the last call, in arrival order; their events."""
-        events: list[StackEvent] = []
+        with self._lock:
+            events, self._refusals = self._refusals, []
         while True:
             with self._lock:
                 if not self._queue:

@@ -175,11 +175,13 @@ class OnboardNode:
 
     def _bind(self, session: zenoh.Session) -> None:
         """The vehicle's ports on the session, and what moves messages through them."""
-        self.commands = CommandDesk(self.stack, self.vehicle_id, lambda: self.clock.now_s)
         self.session_client = SessionClient(
             vehicle_id=self.vehicle_id,
             etcs_id=self.settings.etcs_id,
             train_length_m=self.settings.train_length_m,
+        )
+        self.commands = CommandDesk(
+            self.stack, self.vehicle_id, lambda: self.clock.now_s, self.session_client.guard
         )
         self.barrier = StatusBarrier(lockstep=self.lockstep)
         self.ports = TracksidePorts(
@@ -190,15 +192,16 @@ class OnboardNode:
             on_trackside_liveliness=self._on_trackside_liveliness,
             block_status=self.lockstep,
         )
+        self.intake = TracksideIntake(
+            self.ports, self.stack, self.session_client, emit=self._emit_at
+        )
         self.session_link = SessionLink(
             self.session_client,
             self.ports,
             self.barrier,
             lockstep=self.lockstep,
             emit=self._emit_at,
-        )
-        self.intake = TracksideIntake(
-            self.ports, self.stack, self.session_client, emit=self._emit_at
+            on_current_authority=self.intake.on_current_authority,
         )
 
     def _register_tasks(self, vital: VcInstallation | None) -> None:

@@ -33,6 +33,7 @@ from protocol.registry import (
     JOURNEY_PROFILE_ACK,
     LINE_VERSION,
     MOVEMENT_AUTHORITY,
+    MOVEMENT_AUTHORITY_CURRENT,
     SESSION,
     SESSION_TERMINATION,
     SPEED_RESTRICTION,
@@ -193,6 +194,30 @@ class TracksidePorts:
     ) -> None:
         """The handshake, answered on Zenoh's thread (real time)."""
         request_async(self.session, SESSION, handshake, on_reply, vehicle=self.vehicle_id)
+
+    def ask_current_authority(self, *, timeout_s: float) -> m.MovementAuthorityReply:
+        """The RBC's MA and TSRs in force for this vehicle, waited for (lockstep).
+
+        Raises :class:`~protocol.RequestTimeoutError` when nobody answers in time and
+        :class:`~protocol.ProtocolError` on a bad answer."""
+        ask = m.MovementAuthorityRequest(vehicle_id=self.vehicle_id)
+        reply: m.MovementAuthorityReply = request(
+            self.session,
+            MOVEMENT_AUTHORITY_CURRENT,
+            ask,
+            timeout_s=timeout_s,
+            vehicle=self.vehicle_id,
+        )
+        return reply
+
+    def ask_current_authority_async(
+        self, on_reply: Callable[[m.MovementAuthorityReply], None]
+    ) -> None:
+        """The RBC's MA and TSRs in force for this vehicle, answered on Zenoh's thread."""
+        ask = m.MovementAuthorityRequest(vehicle_id=self.vehicle_id)
+        request_async(
+            self.session, MOVEMENT_AUTHORITY_CURRENT, ask, on_reply, vehicle=self.vehicle_id
+        )
 
     # -- life cycle ------------------------------------------------------------------------------
 

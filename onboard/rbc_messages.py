@@ -67,16 +67,18 @@ def receive_speed_restriction(
         if not track_map.revoke_temporary_speed_restriction(message.restriction_id):
             return f"TSR {message.restriction_id} not in force: nothing to revoke", False
         return f"TSR {message.restriction_id} revoked", True
-    track_map.add_temporary_speed_restriction(
-        TemporarySpeedRestriction(
-            id=message.restriction_id,
-            start_m=message.start_m,
-            end_m=message.end_m,
-            speed_mps=message.speed_mps,
-        )
+    restriction = TemporarySpeedRestriction(
+        id=message.restriction_id,
+        start_m=message.start_m,
+        end_m=message.end_m,
+        speed_mps=message.speed_mps,
     )
     what = (
         f"TSR {message.restriction_id} {message.speed_mps / MPS_PER_KMH:.0f} km/h over "
         f"{message.start_m:.0f}..{message.end_m:.0f} m"
     )
+    if restriction in track_map.temporary_speed_restrictions:
+        # Sent again (the RBC's answer at a new session): already in force, nothing to plan.
+        return f"{what}: already in force", False
+    track_map.add_temporary_speed_restriction(restriction)
     return what, True

@@ -4,8 +4,9 @@ A pure state machine driven with explicit times, so that lockstep runs are deter
 node moves its messages over Zenoh.
 
 - **NCE** (no communication established): a handshake request (HSReq) with the supported
-  versions is due at once, and again no sooner than ``retry_s`` (30 s) after a rejection or a
-  loss.
+  versions is due at once (at start-up, and when a session was lost: the trackside may have
+  restarted), and again no sooner than ``retry_s`` (30 s) after a rejection or an unanswered
+  request.
 - **CSR** (session requested): waiting for the answer. An acceptance (HSAck) brings the trackside's
   response timeout and status-report interval; a rejection (HSRej) its reason. No answer within
   the request timeout counts as a failed attempt.
@@ -24,6 +25,7 @@ import math
 from dataclasses import dataclass, field
 from enum import StrEnum
 
+from onboard.freshness import FreshnessGuard
 from protocol import messages as m
 
 __all__ = ["ClientState", "SessionClient", "SessionCounters"]
@@ -65,6 +67,8 @@ class SessionClient:
     status_interval_s: float = 0.2
     reject_reason: m.SessionRejectReason | None = None
     counters: SessionCounters = field(default_factory=SessionCounters)
+    guard: FreshnessGuard = field(default_factory=FreshnessGuard)
+    """Takes the trackside's messages of the session held only (``onboard.freshness``)."""
     _next_request_s: float = 0.0
     _requested_s: float = 0.0
     _last_heard_s: float = 0.0
@@ -103,6 +107,7 @@ class SessionClient:
             self.response_timeout_s = response.response_timeout_s
             self.status_interval_s = response.status_interval_s
             self.reject_reason = None
+            self.guard.open(response.session_id)
             self._last_heard_s = self._next_status_s = now_s
             self._outstanding_seq = None
             self.counters.accepted += 1
@@ -164,8 +169,11 @@ class SessionClient:
             self._next_request_s = now_s + self.retry_s
             return False
         if self.established and now_s - self._last_heard_s > self.response_timeout_s:
+            # A lost session is asked for again at once (a trackside that restarted answers
+            # it); only a request that fails waits for the retry.
             self.state = ClientState.NCE
-            self._next_request_s = now_s + self.retry_s
+            self.guard.close()
+            self._next_request_s = now_s
             self._outstanding_seq = None
             self.counters.lost += 1
             return True
@@ -178,6 +186,7 @@ class SessionClient:
         if not self.established:
             return None
         self.state = ClientState.CST
+        self.guard.close()
         self._next_request_s = now_s + self.retry_s
         return m.SessionTermination(vehicle_id=self.vehicle_id, by="onboard", reason=reason)
 
@@ -190,5 +199,6 @@ class SessionClient:
             self.counters.stale += 1
             return False
         self.state = ClientState.CST
+        self.guard.close()
         self._next_request_s = now_s + self.retry_s
         return True

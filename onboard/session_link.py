@@ -28,6 +28,12 @@ HANDSHAKE_RETRY_S = 0.02
 Emit = Callable[[m.EventSeverity, str, str, int], None]
 """Publishes an event: severity, code, text, at the instant [ns]."""
 
+CurrentAuthority = Callable[[m.MovementAuthorityReply], None]
+"""Takes the RBC's answer to "which MA and TSRs are in force for me"."""
+
+CURRENT_AUTHORITY_TIMEOUT_S = 2.0
+"""Lockstep: how long, in wall time, a new session waits for the RBC's MA and TSRs [s]."""
+
 
 class SessionLink:
     """Steps a :class:`SessionClient` on what the ports received, and asks the handshake.
@@ -44,6 +50,9 @@ class SessionLink:
         Ask the handshake and wait for its answer at the tick (else asynchronously).
     emit : Emit
         Publishes the session's events.
+    on_current_authority : CurrentAuthority, optional
+        Takes the RBC's MA and TSRs in force, asked for at each new session (the vehicle may
+        have started, or the trackside restarted, since it last heard them).
     """
 
     def __init__(
@@ -54,12 +63,14 @@ class SessionLink:
         *,
         lockstep: bool,
         emit: Emit,
+        on_current_authority: CurrentAuthority | None = None,
     ) -> None:
         self.client = client
         self.ports = ports
         self.barrier = barrier
         self.lockstep = lockstep
         self._emit = emit
+        self._on_current_authority = on_current_authority
         self._replies: deque[SessionReply | None] = deque()
         self._lock = threading.Lock()
 
@@ -123,5 +134,20 @@ class SessionLink:
             self.barrier.arm()
             text = f"with {client.trackside_id}"
             self._emit(m.EventSeverity.INFO, "session.established", text, now_ns)
+            self._ask_current_authority(now_ns)
         elif isinstance(reply, m.SessionReject):
             self._emit(m.EventSeverity.WARNING, "session.rejected", reply.reason.value, now_ns)
+
+    def _ask_current_authority(self, now_ns: int) -> None:
+        """Ask the RBC for the MA and TSRs in force: waited for in lockstep (so they are taken
+        at the next ``commands`` tick of every run), answered on Zenoh's thread in real time."""
+        take = self._on_current_authority
+        if take is None:
+            return
+        try:
+            if not self.lockstep:
+                self.ports.ask_current_authority_async(take)
+                return
+            take(self.ports.ask_current_authority(timeout_s=CURRENT_AUTHORITY_TIMEOUT_S))
+        except ProtocolError as exc:
+            self._emit(m.EventSeverity.INFO, "etcs.current_ma_unknown", str(exc), now_ns)

@@ -35,6 +35,7 @@ __all__ = [
     "EtcsMode",
     "Event",
     "EventSeverity",
+    "Freshness",
     "JourneyProfile",
     "JourneyProfileAck",
     "JourneyProfileStatus",
@@ -148,6 +149,27 @@ class Message(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     schema_version: Literal[1] = Field(default=1, description="Message schema, SCHEMA_VERSION")
+
+
+class Freshness(BaseModel):
+    """Which session a trackside message belongs to, and its number in it (EN 50159's
+    identifier and sequence number): the onboard takes a command, a journey profile, an MA or a
+    TSR only from the session it holds, and each number once (``onboard.freshness``)."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    session_id: str = Field(
+        min_length=8,
+        max_length=64,
+        pattern=r"^[A-Za-z0-9_-]+$",
+        description="The session's id, given by the trackside in its HSAck",
+    )
+    number: int = Field(
+        ge=1, le=2**53, description="The trackside's counter in the session, +1 per message"
+    )
+
+
+_FRESHNESS = "The session and number it was sent in (none: refused on board)"
 
 
 class ArrivalEstimate(BaseModel):
@@ -359,6 +381,7 @@ class Command(Message):
     command_id: int = Field(ge=0, description="Issuer's counter, echoed in the ack")
     issued_by: str = Field(min_length=1, max_length=64, description="User or service")
     body: CommandBody
+    freshness: Freshness | None = Field(default=None, description=_FRESHNESS)
 
 
 class CommandAck(Message):
@@ -411,6 +434,7 @@ class JourneyProfile(Message):
     track_data_version: str = Field(min_length=1, max_length=128, description="Line hash")
     max_speed_mps: NonNegativeFloat | None = Field(default=None, description="Journey cap [m/s]")
     timing_points: tuple[TimingPoint, ...] = Field(min_length=1)
+    freshness: Freshness | None = Field(default=None, description=_FRESHNESS)
 
     @model_validator(mode="after")
     def _one_end_of_journey_last(self) -> Self:
@@ -459,6 +483,12 @@ class SessionAccept(Message):
 
     type: Literal["accept"] = "accept"
     trackside_id: str = Field(min_length=1, max_length=64)
+    session_id: str = Field(
+        min_length=8,
+        max_length=64,
+        pattern=r"^[A-Za-z0-9_-]+$",
+        description="The session's id, carried by every message the trackside sends in it",
+    )
     version: int = Field(ge=1)
     response_timeout_s: float = Field(gt=0.0, le=600.0, allow_inf_nan=False)
     status_interval_s: float = Field(gt=0.0, le=60.0, allow_inf_nan=False)
@@ -630,6 +660,7 @@ class MovementAuthorityMessage(Message):
     authority: MovementAuthorityExtent | None = Field(
         description="The MA granted; none when revoked"
     )
+    freshness: Freshness | None = Field(default=None, description=_FRESHNESS)
 
     @model_validator(mode="after")
     def _authority_unless_revoked(self) -> Self:
@@ -643,13 +674,6 @@ class MovementAuthorityRequest(Message):
     """An onboard asks for its current MA (at start-up, or after it lost the stream)."""
 
     vehicle_id: VehicleId
-
-
-class MovementAuthorityReply(Message):
-    """The RBC's current MA for the vehicle; ``None`` when it holds none."""
-
-    vehicle_id: VehicleId
-    movement_authority: MovementAuthorityMessage | None = None
 
 
 class MovementAuthorityAck(Message):
@@ -676,9 +700,19 @@ class SpeedRestrictionMessage(Message):
     speed_mps: float | None = Field(
         gt=0.0, le=100.0, allow_inf_nan=False, description="Speed limit [m/s]; null: revoked"
     )
+    freshness: Freshness | None = Field(default=None, description=_FRESHNESS)
 
     @model_validator(mode="after")
     def _ordered(self) -> Self:
         if self.end_m <= self.start_m:
             raise ValueError("end_m must lie after start_m")
         return self
+
+
+class MovementAuthorityReply(Message):
+    """The RBC's current MA for the vehicle (``None`` when it holds none) and the TSRs in
+    force for it: what an onboard asks for at start-up and after a new session."""
+
+    vehicle_id: VehicleId
+    movement_authority: MovementAuthorityMessage | None = None
+    speed_restrictions: tuple[SpeedRestrictionMessage, ...] = Field(default=(), max_length=256)

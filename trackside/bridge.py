@@ -26,19 +26,16 @@ import zenoh
 
 from protocol import (
     LivelinessWatcher,
-    PayloadError,
     TransportError,
     TypedPublisher,
     TypedQueryable,
     TypedSubscriber,
     declare_liveliness,
-    request,
 )
 from protocol import messages as m
 from protocol.registry import (
     ALIVE_ONBOARD,
     ALIVE_TRACKSIDE,
-    COMMAND,
     EVENT,
     JOURNEY_PROFILE,
     JOURNEY_PROFILE_ACK,
@@ -49,6 +46,7 @@ from protocol.registry import (
     STATUS_ACK,
     Topic,
 )
+from trackside.command_link import send_command, send_command_async
 from trackside.session import SessionManager
 
 __all__ = ["VehicleSnapshot", "ZenohBridge"]
@@ -232,6 +230,11 @@ class ZenohBridge:
                 self.sessions.on_termination(termination)
             self._notify()
 
+    def seal(self, vehicle_id: str) -> m.Freshness | None:
+        """The session id and next number for a message to the vehicle (``None``: no session,
+        the onboard will refuse it)."""
+        return self.sessions.seal(vehicle_id)
+
     def session_open(self, vehicle_id: str) -> bool:
         with self._session_lock:
             return vehicle_id in self.sessions.sessions
@@ -261,6 +264,7 @@ class ZenohBridge:
         """Send a journey profile and wait for its acknowledgement (or rejection); ``None``
         when none came within ``timeout_s`` of wall time."""
         vehicle = profile.vehicle_id
+        profile = profile.model_copy(update={"freshness": self.seal(vehicle)})
         with self._acks_changed:
             self._acks.pop(vehicle, None)
         self._publisher(JOURNEY_PROFILE, vehicle).put(profile)
@@ -282,13 +286,12 @@ class ZenohBridge:
     # -- commands ------------------------------------------------------------------------------
 
     def command(self, command: m.Command, *, timeout_s: float) -> m.CommandAck:
-        """Send a command and wait for the vehicle's acknowledgement. Raises
-        ``protocol.RequestTimeoutError`` when none came in ``timeout_s`` of wall time, other
-        ``protocol.ProtocolError`` when the answer was an error or not valid."""
-        ack: m.CommandAck = request(
-            self._zenoh, COMMAND, command, timeout_s=timeout_s, vehicle=command.vehicle_id
-        )
-        return ack
+        """Send a command, sealed for the vehicle's session, and wait for the vehicle's
+        acknowledgement (:func:`trackside.command_link.send_command`)."""
+        return send_command(self._zenoh, self._sealed(command), timeout_s=timeout_s)
+
+    def _sealed(self, command: m.Command) -> m.Command:
+        return command.model_copy(update={"freshness": self.seal(command.vehicle_id)})
 
     def command_async(
         self,
@@ -297,38 +300,9 @@ class ZenohBridge:
         *,
         timeout_s: float,
     ) -> None:
-        """Send a command without waiting. ``on_done`` is called once, on Zenoh's thread, with
-        the acknowledgement, or with None when the query ended without a valid one."""
-        key = COMMAND.key(vehicle=command.vehicle_id)
-        finished = threading.Event()
-
-        def finish(ack: m.CommandAck | None) -> None:
-            if finished.is_set():
-                return
-            finished.set()
-            try:
-                on_done(ack)
-            except Exception:  # a consumer's bug must not kill Zenoh's thread
-                _log.exception("command callback for %s failed", key)
-
-        def on_reply(reply: zenoh.Reply) -> None:
-            if reply.ok is None:
-                _log.warning("%s: error reply to command %d", key, command.command_id)
-                return
-            try:
-                finish(COMMAND.decode_reply(reply.ok.payload.to_bytes()))
-            except PayloadError as exc:
-                _log.warning("%s: bad command reply dropped: %s", key, exc)
-
-        try:
-            self._zenoh.get(
-                key,
-                zenoh.handlers.Callback(on_reply, lambda: finish(None)),
-                payload=COMMAND.encode(command),
-                timeout=timeout_s,
-            )
-        except zenoh.ZError as exc:
-            raise TransportError(f"command on {key} failed: {exc}") from exc
+        """Send a command, sealed, without waiting
+        (:func:`trackside.command_link.send_command_async`)."""
+        send_command_async(self._zenoh, self._sealed(command), on_done, timeout_s=timeout_s)
 
     def vehicle_ids(self) -> list[str]:
         with self._lock:

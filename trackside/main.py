@@ -41,6 +41,7 @@ from trackside.log_redaction import install_token_redaction
 from trackside.models import AuditEntry, Role
 from trackside.ratelimit import LoginLimiter
 from trackside.rbc import LineInfo, RbcEmulator
+from trackside.rbc_persistence import RbcPersistence
 from trackside.rbc_scenario import (
     RbcScenario,
     RbcScenarioRunner,
@@ -243,6 +244,8 @@ def _start_rbc(
         session=session,
         line_info=partial(_line_info, factory),
         positions=partial(_reported_status, bridge),
+        seal=bridge.seal,
+        persistence=RbcPersistence(factory),
     )
     app.state.rbc = rbc_emulator
     scenario = None

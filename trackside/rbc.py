@@ -4,10 +4,14 @@ An RBC (radio block centre) grants each vehicle an MA up to an end of authority 
 end forward as the line ahead clears (extension) or back as it closes (shortening), and may
 withdraw it (revocation). :class:`RbcEmulator` holds the current MA of every vehicle and numbers
 every change (``ma_id``, +1 per change and vehicle, never reused). It publishes each change on
-``ato/ts/rbc/{vehicle}/ma`` (reliable FIFO), answers ``ato/ts/rbc/{vehicle}/current_ma`` for an
-onboard that starts up or lost the stream, and records the onboard's acknowledgements from
-``ato/ob/{vehicle}/ma_ack``. Without a Zenoh session it only calls its listeners, which is what a
-lockstep test needs.
+``ato/ts/rbc/{vehicle}/ma`` (reliable FIFO), answers ``ato/ts/rbc/{vehicle}/current_ma`` (the
+MA and the TSRs in force) for an onboard that starts up or opens a new session, and records the
+onboard's acknowledgements from ``ato/ob/{vehicle}/ma_ack``. Without a Zenoh session it only
+calls its listeners, which is what a lockstep test needs.
+
+Durable: with a database (``persistence``), the counters, the MAs and the TSRs in force are
+written as they are sent and restored when the emulator starts (:mod:`trackside.rbc_persistence`),
+so a restarted trackside goes on numbering, extending and revoking where it left off.
 
 Nothing half-done: a change is checked, then published, then stored; a refusal
 (:class:`~trackside.errors.MovementAuthorityRefusedError`) or a failed publication
@@ -36,6 +40,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from typing import Self
 
 import zenoh
@@ -44,7 +49,8 @@ from pydantic import Field
 from protocol import messages as m
 from trackside.errors import NoMovementAuthorityError
 from trackside.rbc_checks import MovementAuthorityChecks, PositionLookup
-from trackside.rbc_link import RbcZenohLink
+from trackside.rbc_link import RbcZenohLink, Seal
+from trackside.rbc_persistence import RbcPersistence
 from trackside.rbc_rules import (
     LineInfo,
     LineInfoLookup,
@@ -105,6 +111,10 @@ class RbcEmulator:
         Each vehicle's latest status report; without it, EoAs are not checked against positions.
     margin_m
         An EoA must lie more than this far [m] ahead of the reported front end.
+    seal
+        Seals each message for its vehicle's session (:meth:`trackside.bridge.ZenohBridge.seal`).
+    persistence
+        Where the MAs, counters and TSRs are kept across restarts; none: in memory only.
     """
 
     def __init__(
@@ -115,6 +125,8 @@ class RbcEmulator:
         line_info: LineInfoLookup | None = None,
         positions: PositionLookup | None = None,
         margin_m: float = 0.0,
+        seal: Seal | None = None,
+        persistence: RbcPersistence | None = None,
     ) -> None:
         self._checks = MovementAuthorityChecks(
             line_info=line_info, positions=positions, margin_m=margin_m
@@ -124,7 +136,11 @@ class RbcEmulator:
         # such as the queryable on Zenoh's thread, only ever take the store's short lock.
         self._change_lock = threading.Lock()
         self._store = MovementAuthorityStore()
-        self._link = None if session is None else RbcZenohLink(session, self._store)
+        self._persistence = persistence
+        if persistence is not None:
+            kept = persistence.load()
+            self._store.restore(kept.last_ma_ids, kept.current, kept.restrictions)
+        self._link = None if session is None else RbcZenohLink(session, self._store, seal)
 
     # -- reading ------------------------------------------------------------------------------
 
@@ -143,6 +159,10 @@ class RbcEmulator:
     def vehicle_ids(self) -> list[str]:
         """The vehicles that were ever sent an MA."""
         return self._store.vehicle_ids()
+
+    def restrictions(self, vehicle_id: str) -> tuple[m.SpeedRestrictionMessage, ...]:
+        """The TSRs in force for the vehicle, in the order they were put in force."""
+        return self._store.restrictions(vehicle_id)
 
     def add_listener(self, listener: MaListener) -> None:
         """Call ``listener(message)`` after each change, in ``ma_id`` order, on its thread."""
@@ -235,10 +255,13 @@ class RbcEmulator:
             If it could not be published.
         """
         self._checks.check_speed_restriction(vehicle_id, message)
-        if self._link is None:
-            return
+        link = self._link
         with self._change_lock:
-            self._link.publish_speed_restriction(vehicle_id, message)
+            self._send(
+                message,
+                lambda: _publish_speed_restriction(link, vehicle_id, message),
+                lambda: self._store.record_restriction(message),
+            )
 
     def close(self) -> None:
         """Stop answering and publishing; the MAs held are forgotten with the object."""
@@ -283,9 +306,12 @@ class RbcEmulator:
                 authority=extent,
             )
         )
-        if self._link is not None:
-            self._link.publish_movement_authority(message)
-        self._store.record(message)
+        link = self._link
+        self._send(
+            message,
+            lambda: _publish_movement_authority(link, message),
+            lambda: self._store.record(message),
+        )
         _log.info(
             "MA %s for %s: ma_id %d, EoA %s",
             change.value,
@@ -295,8 +321,50 @@ class RbcEmulator:
         )
         return message
 
+    def _send(
+        self,
+        message: m.MovementAuthorityMessage | m.SpeedRestrictionMessage,
+        publish: Callable[[], object],
+        record: Callable[[], None],
+    ) -> None:
+        """Publish while the change is written to the database, and record it in memory once
+        published: a failed publication keeps nothing; a commit that fails after the
+        publication still records it in memory (the vehicle has it), and raises."""
+        published = False
+        try:
+            with self._recording(message):
+                publish()
+                published = True
+        finally:
+            if published:
+                record()
+
+    def _recording(
+        self, message: m.MovementAuthorityMessage | m.SpeedRestrictionMessage
+    ) -> AbstractContextManager[None]:
+        """Kept in the database around its publication (nothing kept without persistence)."""
+        if self._persistence is None:
+            return nullcontext()
+        if isinstance(message, m.MovementAuthorityMessage):
+            return self._persistence.recording_authority(message)
+        return self._persistence.recording_restriction(message)
+
 
 def _authority(message: m.MovementAuthorityMessage) -> m.MovementAuthorityExtent:
     if message.authority is None:  # pragma: no cover - revoked MAs are not stored
         raise NoMovementAuthorityError(f"the MA of {message.vehicle_id} is revoked")
     return message.authority
+
+
+def _publish_movement_authority(
+    link: RbcZenohLink | None, message: m.MovementAuthorityMessage
+) -> None:
+    if link is not None:
+        link.publish_movement_authority(message)
+
+
+def _publish_speed_restriction(
+    link: RbcZenohLink | None, vehicle_id: str, message: m.SpeedRestrictionMessage
+) -> None:
+    if link is not None:
+        link.publish_speed_restriction(vehicle_id, message)

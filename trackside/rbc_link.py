@@ -7,6 +7,10 @@ answers ``ato/ts/rbc/{vehicle}/current_ma`` from the emulator's
 :class:`~trackside.rbc_store.MovementAuthorityStore`; and it hands the onboard's
 acknowledgements from ``ato/ob/{vehicle}/ma_ack`` to that store.
 
+Every message is sealed as it goes out (``seal``: the session's id and its next number, see
+:mod:`trackside.session`), the answers to ``current_ma`` too: the onboard takes only what belongs
+to the session it holds.
+
 Zenoh's failure to publish (:class:`protocol.TransportError`) comes out as the RBC's own
 :class:`~trackside.errors.RbcPublicationError`. The emulator serialises its changes, and calls
 the publishing methods and :meth:`RbcZenohLink.close_publishers` with its change lock held;
@@ -16,8 +20,9 @@ the callbacks run on Zenoh's threads and touch only the store.
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import TypeVar
 
 import zenoh
 
@@ -32,7 +37,12 @@ from protocol.registry import (
 from trackside.errors import RbcPublicationError
 from trackside.rbc_store import MovementAuthorityStore
 
-__all__ = ["RbcZenohLink"]
+__all__ = ["RbcZenohLink", "Seal"]
+
+_Sealed = TypeVar("_Sealed", m.MovementAuthorityMessage, m.SpeedRestrictionMessage)
+
+Seal = Callable[[str], m.Freshness | None]
+"""The session's id and next number for a message to the vehicle (``None``: no session)."""
 
 # The emulator's own logger, as before the RBC was split into modules: log filters name it.
 _log = logging.getLogger("trackside.rbc")
@@ -47,11 +57,16 @@ class RbcZenohLink:
         The Zenoh session to publish on and answer queries from.
     store
         Where the MAs in force are read and the acknowledgements recorded.
+    seal
+        Seals each message for its vehicle's session; none: sent unsealed (refused on board).
     """
 
-    def __init__(self, session: zenoh.Session, store: MovementAuthorityStore) -> None:
+    def __init__(
+        self, session: zenoh.Session, store: MovementAuthorityStore, seal: Seal | None = None
+    ) -> None:
         self._session = session
         self._store = store
+        self._seal = seal
         self._publishers: dict[str, TypedPublisher[m.MovementAuthorityMessage]] = {}
         self._tsr_publishers: dict[str, TypedPublisher[m.SpeedRestrictionMessage]] = {}
         self._queryable = TypedQueryable(session, MOVEMENT_AUTHORITY_CURRENT, self._answer_current)
@@ -77,7 +92,7 @@ class RbcZenohLink:
             if publisher is None:
                 publisher = TypedPublisher(self._session, MOVEMENT_AUTHORITY, vehicle=vehicle_id)
                 self._publishers[vehicle_id] = publisher
-            publisher.put(message)
+            publisher.put(self._sealed(message))
 
     def publish_speed_restriction(
         self, vehicle_id: str, message: m.SpeedRestrictionMessage
@@ -94,7 +109,7 @@ class RbcZenohLink:
             if publisher is None:
                 publisher = TypedPublisher(self._session, SPEED_RESTRICTION, vehicle=vehicle_id)
                 self._tsr_publishers[vehicle_id] = publisher
-            publisher.put(message)
+            publisher.put(self._sealed(message))
 
     def close_publishers(self) -> None:
         """Undeclare every vehicle's publishers (called with the emulator's change lock held)."""
@@ -116,9 +131,18 @@ class RbcZenohLink:
         vehicle_id = chunks["vehicle"]
         if request.vehicle_id != vehicle_id:
             raise ValueError(f"request for {request.vehicle_id} sent on {vehicle_id}'s key")
+        current = self._store.current(vehicle_id)
         return m.MovementAuthorityReply(
-            vehicle_id=vehicle_id, movement_authority=self._store.current(vehicle_id)
+            vehicle_id=vehicle_id,
+            movement_authority=None if current is None else self._sealed(current),
+            speed_restrictions=tuple(
+                self._sealed(tsr) for tsr in self._store.restrictions(vehicle_id)
+            ),
         )
+
+    def _sealed(self, message: _Sealed) -> _Sealed:
+        seal = None if self._seal is None else self._seal(message.vehicle_id)
+        return message.model_copy(update={"freshness": seal})
 
     def _on_acknowledgement(self, key: str, ack: m.MovementAuthorityAck) -> None:
         vehicle_id = MOVEMENT_AUTHORITY_ACK.parse(key)["vehicle"]

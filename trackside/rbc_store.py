@@ -1,8 +1,11 @@
-"""What the RBC emulator remembers: each vehicle's MA in force, its counter, its acknowledgement.
+"""What the RBC emulator remembers: each vehicle's MA in force, its counter, its acknowledgement,
+its TSRs in force.
 
 :class:`MovementAuthorityStore` is the state behind :class:`trackside.rbc.RbcEmulator`: the
 current movement authority (MA) of every vehicle, the last ``ma_id`` sent to it (revocations
-too), the onboard's latest acknowledgement, and the listeners told of every change. The
+too), the onboard's latest acknowledgement, the temporary speed restrictions (TSRs) in force for
+it, and the listeners told of every change. In the service it is filled, at start-up, from what
+the database kept (:mod:`trackside.rbc_persistence`). The
 emulator checks and publishes a change, then records it here; the Zenoh link
 (:mod:`trackside.rbc_link`) reads it to answer ``current_ma`` and records acknowledgements.
 
@@ -35,7 +38,34 @@ class MovementAuthorityStore:
         self._current: dict[str, m.MovementAuthorityMessage] = {}
         self._last_ma_id: dict[str, int] = {}
         self._acknowledgements: dict[str, m.MovementAuthorityAck] = {}
+        self._restrictions: dict[str, dict[str, m.SpeedRestrictionMessage]] = {}
         self._listeners: list[MaListener] = []
+
+    def restore(
+        self,
+        last_ma_ids: dict[str, int],
+        current: dict[str, m.MovementAuthorityMessage],
+        restrictions: dict[str, dict[str, m.SpeedRestrictionMessage]],
+    ) -> None:
+        """Take back what was kept across a restart (before anything is sent)."""
+        with self._lock:
+            self._last_ma_id.update(last_ma_ids)
+            self._current.update(current)
+            for vehicle_id, in_force in restrictions.items():
+                self._restrictions.setdefault(vehicle_id, {}).update(in_force)
+
+    def restrictions(self, vehicle_id: str) -> tuple[m.SpeedRestrictionMessage, ...]:
+        """The TSRs in force for the vehicle, in the order they were put in force."""
+        with self._lock:
+            return tuple(self._restrictions.get(vehicle_id, {}).values())
+
+    def record_restriction(self, message: m.SpeedRestrictionMessage) -> None:
+        """Store a TSR already sent: put in force, or (no speed) revoked."""
+        with self._lock:
+            in_force = self._restrictions.setdefault(message.vehicle_id, {})
+            in_force.pop(message.restriction_id, None)
+            if message.speed_mps is not None:
+                in_force[message.restriction_id] = message
 
     def current(self, vehicle_id: str) -> m.MovementAuthorityMessage | None:
         """The vehicle's MA in force (issued, extended or shortened); ``None`` if none."""

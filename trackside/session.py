@@ -4,11 +4,15 @@ The bridge answers handshake requests with it, acknowledges status reports throu
 it, periodically, which sessions have timed out. Times are the caller's (wall or simulated), so
 tests drive it deterministically.
 
-- A handshake (HSReq) is accepted (HSAck with this trackside's id, the protocol version, the
-  response timeout and the status-report interval) when a supported version is offered and no
-  other trackside is in charge of the vehicle; otherwise it is rejected (HSRej) with the reason.
+- A handshake (HSReq) is accepted (HSAck with this trackside's id, a new session id, the
+  protocol version, the response timeout and the status-report interval) when a supported
+  version is offered and no other trackside is in charge of the vehicle; otherwise it is
+  rejected (HSRej) with the reason.
 - Each status report (STR) of an established session is acknowledged (STRAck). A report whose
   counter is not newer than the last one taken is stale: rejected and counted.
+- Every command, journey profile, MA and TSR sent in a session carries its id and a number,
+  +1 per message (:meth:`SessionManager.seal`): the onboard takes only those of the session it
+  holds, each number once (``onboard.freshness``).
 - A session is lost when no report arrived within the response timeout (in the vehicle's own
   time, seen when the next report comes), when the vehicle's liveliness token goes; either side
   may end it.
@@ -16,6 +20,8 @@ tests drive it deterministically.
 
 from __future__ import annotations
 
+import secrets
+import threading
 from dataclasses import dataclass, field
 
 from protocol import messages as m
@@ -33,6 +39,10 @@ class TracksideSession:
     last_report_s: float
     last_seq: int = -1
     reports: int = 0
+    session_id: str = field(default_factory=lambda: secrets.token_urlsafe(12))
+    """Unguessable, new for every session: a message of an earlier session is refused."""
+    sent: int = 0
+    """Messages sealed in this session so far (the last number given)."""
 
 
 @dataclass
@@ -47,6 +57,7 @@ class SessionManager:
     reports_outside_session: int = 0
     rejected: int = 0
     lost: int = 0
+    _seal_lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def on_request(
         self, request: m.SessionRequest, now_s: float
@@ -67,10 +78,21 @@ class SessionManager:
         )
         return m.SessionAccept(
             trackside_id=self.trackside_id,
+            session_id=self.sessions[request.vehicle_id].session_id,
             version=version,
             response_timeout_s=self.response_timeout_s,
             status_interval_s=self.status_interval_s,
         )
+
+    def seal(self, vehicle_id: str) -> m.Freshness | None:
+        """The session id and the next number for a message to the vehicle; ``None`` when no
+        session is open with it (the onboard then refuses the message). Thread-safe."""
+        with self._seal_lock:
+            session = self.sessions.get(vehicle_id)
+            if session is None:
+                return None
+            session.sent += 1
+            return m.Freshness(session_id=session.session_id, number=session.sent)
 
     def on_status(self, report: m.StatusReport, now_s: float) -> m.StatusAck | None:
         """The STRAck for a report of an established session; None for a stale report or one

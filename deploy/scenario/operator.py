@@ -6,18 +6,27 @@ reads the requests the node reports and answers each one through a real Zenoh co
 trackside's console (or its simulated operator) does, once its reaction time has passed since
 it first saw the request; the command is executed at the node's next commands tick, so the run
 stays deterministic. ``present = False`` is an operator who has left the console.
+
+The operator commands as a trackside does, through a trackside's Zenoh bridge of its own
+(:class:`trackside.bridge.ZenohBridge`, holding the node's own line): the bridge answers the
+node's handshake and track-data query, acknowledges its reports and seals each command with
+the session's id and number, without which the node refuses it (``onboard.freshness``). The
+operator waits for the node's session when it starts. Beside a trackside service (end-to-end
+tests), it commands through that service's bridge instead (``trackside=`` or
+:meth:`LockstepOperator.attach`), the one the node shakes hands with.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Literal
 
 import zenoh
 
+from deploy.scenario.run_context import ScenarioRunError, wait_for
 from onboard.node import OnboardNode
 from protocol import messages as m
-from protocol import request
-from protocol.registry import COMMAND
+from trackside.bridge import ZenohBridge
 
 __all__ = ["ANSWERED", "REQUEST_TIMEOUT_S", "LockstepOperator"]
 
@@ -40,9 +49,14 @@ class LockstepOperator:
         present: bool = True,
         reaction_s: float = 0.0,
         name: str = "simulated-operator",
+        session_limit_s: float = 5.0,
+        trackside: ZenohBridge | Literal["own"] | None = "own",
     ) -> None:
         self.session = session
         self.node = node
+        self._owns_bridge = trackside == "own"
+        self.bridge = _own_bridge(session, node, name) if trackside == "own" else trackside
+        """The trackside's bridge the commands go through (None: none yet, or gone)."""
         self.present = present
         """False: the operator has left the console and answers nothing."""
         self.reaction_s = reaction_s
@@ -50,6 +64,26 @@ class LockstepOperator:
         self.answers: list[m.CommandAck] = []
         self._seen_s: dict[tuple[m.OperatorRequestKind, int], float] = {}
         self._command_id = 10_000
+        if self._owns_bridge:
+            self._open_session(session_limit_s)
+
+    def attach(self, bridge: ZenohBridge | None) -> None:
+        """Command through a trackside service's bridge from now on (None: no trackside)."""
+        self.bridge = bridge
+
+    def _open_session(self, limit_s: float) -> None:
+        """Run the node until it holds a session with the bridge (at most ``limit_s`` of
+        simulated time), once it sees the bridge's trackside token."""
+        node = self.node
+        wait_for(lambda: node.trackside_seen)
+        end_s = node.clock.now_s + limit_s
+        while not node.session_client.established and node.clock.now_s < end_s:
+            node.run(0.1)
+
+    def close(self) -> None:
+        """Its own bridge's subscriptions and token go (the node's session then lapses)."""
+        if self._owns_bridge and self.bridge is not None:
+            self.bridge.close()
 
     def pending(self, kind: m.OperatorRequestKind) -> m.OperatorRequest | None:
         """The unconfirmed request of ``kind`` the node shows now, if any."""
@@ -65,7 +99,7 @@ class LockstepOperator:
         """Answer what the node shows now, once the reaction time has passed (call between
         slices)."""
         status = self.node.stack.vital_status()
-        if status is None or not self.present:
+        if status is None or not self.present or self.bridge is None:
             return
         now_s = self.node.clock.now_s
         for pending in status.operator_requests:
@@ -83,13 +117,9 @@ class LockstepOperator:
             issued_by=self.name,
             body=body,
         )
-        ack = request(
-            self.session,
-            COMMAND,
-            command,
-            timeout_s=REQUEST_TIMEOUT_S,
-            vehicle=self.node.vehicle_id,
-        )
+        if self.bridge is None:
+            raise ScenarioRunError("the operator has no trackside to command through")
+        ack = self.bridge.command(command, timeout_s=REQUEST_TIMEOUT_S)
         self.answers.append(ack)
         return ack
 
@@ -111,3 +141,13 @@ class LockstepOperator:
             self.answer()
             self.node.run(slice_s)
         return condition()
+
+
+def _own_bridge(session: zenoh.Session, node: OnboardNode, name: str) -> ZenohBridge:
+    """A trackside's bridge of the operator's own, holding the node's line."""
+    line = node.track_map
+    return ZenohBridge(
+        session,
+        instance_id=f"{name}-trackside",
+        line_version=lambda line_id: line.version if line_id == line.line.id else None,
+    )

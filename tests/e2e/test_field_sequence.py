@@ -18,12 +18,11 @@ import pytest
 import zenoh
 from fastapi.testclient import TestClient
 
-from deploy.scenario.operator import REQUEST_TIMEOUT_S
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import SimClock
-from protocol import TypedSubscriber, ZenohSettings, open_session, request
+from protocol import TypedSubscriber, ZenohSettings, open_session
 from protocol import messages as m
-from protocol.registry import COMMAND, EVENT
+from protocol.registry import EVENT
 from tests.conftest import wait_for
 from tests.e2e.conftest import running_trackside
 from tests.operator import LockstepOperator
@@ -49,9 +48,15 @@ class Vehicle:
         self._events = TypedSubscriber(
             operator, EVENT, on_message=lambda _k, e: self.events.append(e), vehicle="URV1"
         )
-        self._command_id = 0
-        self.hands = LockstepOperator(operator, self.node)
-        """Answers the Vital Control's vigilance and EB-rearm requests between slices."""
+        self.hands = LockstepOperator(operator, self.node, trackside=None)
+        """Answers the Vital Control's vigilance and EB-rearm requests between slices, through
+        the trackside service attached (:meth:`attach`)."""
+
+    def attach(self, client: TestClient | None) -> None:
+        """Command through this trackside service (the one the vehicle holds a session with);
+        None: the service is gone."""
+        bridge = None if client is None else client.app.state.bridge  # type: ignore[attr-defined]
+        self.hands.attach(bridge)
 
     def run(self, duration_s: float) -> None:
         self.hands.run(duration_s)
@@ -61,14 +66,7 @@ class Vehicle:
         return self.hands.run_until(condition, limit_s, step_s)
 
     def command(self, body: Any) -> m.CommandAck:
-        self._command_id += 1
-        command = m.Command(
-            vehicle_id="URV1", command_id=self._command_id, issued_by="e2e", body=body
-        )
-        ack: m.CommandAck = request(
-            self.operator, COMMAND, command, vehicle="URV1", timeout_s=REQUEST_TIMEOUT_S
-        )
-        return ack
+        return self.hands.command(body)
 
     def while_running(self, action: Callable[[], Any]) -> Any:
         """Do ``action`` (which waits for the vehicle) while the vehicle runs."""
@@ -145,7 +143,7 @@ def _send_journey(vehicle: Vehicle, client: TestClient, headers: dict[str, str])
             headers=headers,
         )
     )
-    assert response.status_code == 200, response.text
+    assert response.status_code == 200, [(e.code, e.text) for e in vehicle.events][-30:]
     assert response.json()["accepted"] is True
 
 
@@ -162,6 +160,7 @@ def test_the_seed_000_field_sequence_on_bologna_ring(
     connect = ZenohSettings(connect=(router_endpoint,))
     with open_session(connect) as session, open_session(connect) as operator:
         vehicle = Vehicle(session, operator)
+        vehicle.attach(client)
         try:
             _to_standstill_after_rd(vehicle)
             _send_journey(vehicle, client, headers)
@@ -232,10 +231,12 @@ def test_trackside_loss_while_engaged_ends_at_the_next_stopping_point(
         vehicle = Vehicle(session, operator)
         try:
             with running_trackside(router_endpoint, tmp_path) as (client, headers):
+                vehicle.attach(client)
                 _to_standstill_after_rd(vehicle)
                 _send_journey(vehicle, client, headers)
                 _engage(vehicle)
                 vehicle.run(60.0)
+            vehicle.attach(None)
             # The trackside is gone (its service and Zenoh session closed) in the middle of the
             # first leg: the onboard notices the silence and stops at the next stopping point.
             stack = vehicle.stack

@@ -77,16 +77,11 @@ def test_remote_driving_command_moves_the_vehicle(
     trackside, _ = zenoh_pair
     events: list[m.Event] = []
     with TypedSubscriber(trackside, EVENT, on_message=lambda _k, e: events.append(e)):
-        assert wait_for(lambda: _ping(trackside))
-        ack = request(
-            trackside,
-            COMMAND,
-            _command(m.RemoteDrivingTargetCommand(target_speed_mps=30 / 3.6), 7),
-            vehicle="URV1",
-        )
+        hands = LockstepOperator(trackside, node)
+        ack = hands.command(m.RemoteDrivingTargetCommand(target_speed_mps=30 / 3.6))
         assert ack.accepted
-        assert ack.command_id == 7
-        LockstepOperator(trackside, node).run(90.0)  # confirms the power-up EB rearm
+        assert ack.command_id == hands.answers[-1].command_id
+        hands.run(90.0)  # confirms the power-up EB rearm
         assert wait_for(lambda: any(e.code == "rd.target_speed" for e in events))
     report = node.status(node.clock.now_ns)
     assert report.sc_state is m.ScState.RD
@@ -98,15 +93,34 @@ def _seq(report: m.StatusReport | None) -> int:
     return -1 if report is None else report.seq
 
 
-def _ping(session: zenoh.Session) -> bool:
-    try:
-        return bool(
-            request(
-                session, COMMAND, _command(m.PingCommand(), 0), timeout_s=0.2, vehicle="URV1"
-            ).accepted
-        )
-    except Exception:
-        return False
+def test_a_command_outside_the_session_is_refused_and_counted(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session], node: OnboardNode
+) -> None:
+    """Only the trackside the vehicle holds a session with commands it (issue 20): a bare
+    command (no session id and number), one of another session and a replayed one are refused,
+    the sealed one taken, once."""
+    trackside, _ = zenoh_pair
+    hands = LockstepOperator(trackside, node)
+    target = m.RemoteDrivingTargetCommand(target_speed_mps=20 / 3.6)
+    bare = request(trackside, COMMAND, _command(target, 1), vehicle="URV1")
+    assert not bare.accepted
+    assert bare.reason == "no session id and number"
+    assert hands.bridge is not None
+    seal = hands.bridge.seal("URV1")
+    assert seal is not None
+    sealed = _command(target, 2).model_copy(update={"freshness": seal})
+    assert request(trackside, COMMAND, sealed, vehicle="URV1").accepted
+    replayed = request(trackside, COMMAND, sealed, vehicle="URV1")
+    assert not replayed.accepted
+    assert replayed.reason is not None
+    assert "replayed" in replayed.reason
+    other = m.Freshness(session_id="not-this-session", number=seal.number + 1)
+    forged = _command(target, 3).model_copy(update={"freshness": other})
+    assert not request(trackside, COMMAND, forged, vehicle="URV1").accepted
+    refused = node.session_client.guard.refused
+    assert sum(refused.values()) == 3
+    node.run(0.2)  # the refusals are logged at the next commands tick
+    assert node.commands.rejected == 3
 
 
 @pytest.mark.parametrize(
@@ -121,8 +135,7 @@ def test_commands_that_cannot_be_obeyed_are_refused_with_a_reason(
     zenoh_pair: tuple[zenoh.Session, zenoh.Session], node: OnboardNode, body: object, reason: str
 ) -> None:
     trackside, _ = zenoh_pair
-    assert wait_for(lambda: _ping(trackside))
-    ack = request(trackside, COMMAND, _command(body), vehicle="URV1")
+    ack = LockstepOperator(trackside, node).command(body)  # type: ignore[arg-type]
     assert not ack.accepted
     assert ack.reason is not None
     assert reason in ack.reason
@@ -151,16 +164,10 @@ def test_bogie_fidelity_drives_through_the_vcu(
     try:
         assert isinstance(node.plant.dynamics, BogiePlant)
         assert node.vcu is not None
-        assert wait_for(lambda: _ping(trackside))
+        hands = LockstepOperator(trackside, node)
         target = 30 / 3.6
-        ack = request(
-            trackside,
-            COMMAND,
-            _command(m.RemoteDrivingTargetCommand(target_speed_mps=target)),
-            vehicle="URV1",
-        )
-        assert ack.accepted
-        LockstepOperator(trackside, node).run(60.0)
+        assert hands.command(m.RemoteDrivingTargetCommand(target_speed_mps=target)).accepted
+        hands.run(60.0)
         assert node.plant.speed_mps == pytest.approx(target, abs=0.5)
         truth = node.plant.dynamics.truth
         wheel_speed = truth.wheel_speed_rear_radps * truth.wheel_radius_m

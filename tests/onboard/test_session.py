@@ -15,7 +15,11 @@ def client() -> SessionClient:
 
 def accept(timeout_s: float = 3.0) -> m.SessionAccept:
     return m.SessionAccept(
-        trackside_id="ts-1", version=1, response_timeout_s=timeout_s, status_interval_s=0.2
+        trackside_id="ts-1",
+        session_id="session-1",
+        version=1,
+        response_timeout_s=timeout_s,
+        status_interval_s=0.2,
     )
 
 
@@ -60,6 +64,13 @@ def test_one_status_report_outstanding_and_loss_without_acknowledgements() -> No
     assert c.step(1.3)
     assert c.state is ClientState.NCE
     assert c.counters.lost == 1
+    assert c.guard.session_id is None  # nothing of the lost session is taken any more
+    # A lost session is asked for again at once (the trackside may have restarted); an
+    # unanswered request waits for the retry.
+    assert c.request(1.3, track_data_version=None) is not None
+    c.on_response(None, 1.4)
+    assert c.request(1.5, track_data_version=None) is None
+    assert c.request(1.4 + c.retry_s, track_data_version=None) is not None
 
 
 def test_stale_and_misaddressed_journey_profiles_are_rejected_and_counted() -> None:

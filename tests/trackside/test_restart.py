@@ -27,6 +27,7 @@ def test_restart_while_engaged(router_endpoint: str, tmp_path: Path) -> None:
         stack = vehicle.stack
         try:
             with running_trackside(router_endpoint, tmp_path) as (client, headers):
+                vehicle.attach(client)
                 _to_standstill_after_rd(vehicle)
                 _send_journey(vehicle, client, headers)
                 _engage(vehicle)
@@ -36,19 +37,26 @@ def test_restart_while_engaged(router_endpoint: str, tmp_path: Path) -> None:
                     path: client.get(path, headers=headers).json()
                     for path in ("/api/v1/audit", f"{V}/events", TELEMETRY)
                 }
+            vehicle.attach(None)
             position_m = vehicle.node.plant.position_m
             vehicle.run(1.0)  # the trackside is down for one second of the vehicle's time
             with running_trackside(router_endpoint, tmp_path) as (client, headers):
+                vehicle.attach(client)
                 # Lockstep runs far faster than wall time: let the new service join first.
                 assert wait_for(lambda: client.get(V, headers=headers).json()["alive"])
+
                 # The report sent while the service was down is never acknowledged: the
-                # onboard loses the session after its timeout, heads for the next stopping
-                # point, shakes hands with the new service at its retry and goes on.
-                assert vehicle.run_until(
-                    lambda: any(e.code == "ato.fallback_cancelled" for e in vehicle.events), 60.0
-                )
+                # onboard loses the session after its timeout and asks the new service for one
+                # at once (no fallback stop: the journey goes on).
+                def established_again() -> bool:
+                    codes = [e.code for e in vehicle.events]
+                    return "session.lost" in codes and codes.count("session.established") >= 2
+
+                assert vehicle.run_until(established_again, 60.0)
                 vehicle.run(5.0)
-                assert stack.ato_state is m.AtoState.ENGAGED
+                assert stack.ato_state is m.AtoState.ENGAGED, "\n".join(
+                    f"{e.sim_time_s} {e.code} {e.text}" for e in vehicle.events[-30:]
+                )
                 assert not stack.driving.fallback_active
                 assert vehicle.node.session_client.established
                 assert vehicle.node.plant.position_m > position_m + 50.0
