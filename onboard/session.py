@@ -4,9 +4,9 @@ A pure state machine driven with explicit times, so that lockstep runs are deter
 node moves its messages over Zenoh.
 
 - **NCE** (no communication established): a handshake request (HSReq) with the supported
-  versions is due at once (at start-up, and when a session was lost: the trackside may have
-  restarted), and again no sooner than ``retry_s`` (30 s) after a rejection or an unanswered
-  request.
+  versions is due at once (at start-up, when a session was lost, and when a trackside's
+  liveliness token appears: the trackside may have restarted), and otherwise no sooner than
+  ``retry_s`` (30 s) after a rejection or an unanswered request.
 - **CSR** (session requested): waiting for the answer. An acceptance (HSAck) brings the trackside's
   response timeout and status-report interval; a rejection (HSRej) its reason. No answer within
   the request timeout counts as a failed attempt.
@@ -117,6 +117,12 @@ class SessionClient:
         if isinstance(response, m.SessionReject):
             self.reject_reason = response.reason
             self.counters.rejected += 1
+
+    def trackside_appeared(self, now_s: float) -> None:
+        """A trackside's liveliness token came (back): without a session, ask for one at once
+        rather than at the retry (a restarted trackside answers it)."""
+        if self.state in (ClientState.NCE, ClientState.CST):
+            self._next_request_s = min(self._next_request_s, now_s)
 
     # -- upkeep ------------------------------------------------------------------------------
 

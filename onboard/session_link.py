@@ -71,6 +71,7 @@ class SessionLink:
         self.lockstep = lockstep
         self._emit = emit
         self._on_current_authority = on_current_authority
+        self._trackside_seen = False
         self._replies: deque[SessionReply | None] = deque()
         self._lock = threading.Lock()
 
@@ -84,6 +85,10 @@ class SessionLink:
         due (with the onboard's track-data version)."""
         now_s = now_ns / NS_PER_S
         client = self.client
+        seen = self.ports.trackside_seen
+        if seen and not self._trackside_seen:
+            client.trackside_appeared(now_s)
+        self._trackside_seen = seen
         for ack in self.ports.received_status_acks():
             client.on_status_ack(ack.vehicle_id, ack.seq, now_s)
         for termination in self.ports.received_terminations():

@@ -114,9 +114,17 @@ class FaultInjector:
     def _inject(self, fault: Fault) -> None:
         ctx = self.ctx
         if isinstance(fault, TracksideRestart):
+            held = self.trackside.rbc_state()
             self.trackside.stop()
+            # The vehicle sees the trackside go and come back at a tick fixed by simulated time.
+            wait_for(lambda: not ctx.node.trackside_seen)
             ctx.run_for(fault.down_s)
             self.trackside.start()
+            wait_for(lambda: ctx.node.trackside_seen)
+            kept = self.trackside.rbc_state()
+            ctx.log("rbc.restored", kept == held, f"before {held}, after {kept}")
+            if kept != held:
+                ctx.failures.append(f"the RBC lost its state in the restart: {held} -> {kept}")
             return
         node = ctx.node
         here = node.track_map.normalise(node.plant.position_m)

@@ -159,6 +159,14 @@ class TracksideHarness:
             raise ScenarioRunError("the RBC's MA never reached the vehicle")
         return answer
 
+    def rbc_state(self) -> tuple[int | None, tuple[str, ...]]:
+        """What the RBC holds for the vehicle: its MA's id (None: none) and its TSRs' ids."""
+        url = f"/api/v1/rbc/{self.ctx.spec.vehicle.id}"
+        answer = self.rest.get(f"{url}/ma", headers=self.headers)
+        ma_id = answer.json()["movement_authority"]["ma_id"] if answer.status_code == 200 else None
+        tsrs = self.rest.get(f"{url}/tsr", headers=self.headers).json()
+        return ma_id, tuple(tsr["restriction_id"] for tsr in tsrs)
+
     # -- the driver ------------------------------------------------------------------------------
 
     def command(self, route: str, body: dict[str, Any]) -> Any:

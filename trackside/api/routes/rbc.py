@@ -1,4 +1,5 @@
-"""The RBC emulator: read, issue, extend, shorten and revoke a vehicle's movement authority (MA).
+"""The RBC emulator: read, issue, extend, shorten and revoke a vehicle's movement authority (MA),
+and read, put in force and revoke its temporary speed restrictions (TSRs).
 
 Reading is for every role; changes are for admins and each leaves an audit entry (refused ones
 too, with the reason). A refused change sends nothing and changes nothing.
@@ -145,6 +146,15 @@ def revoke_movement_authority(
     """Revoke the vehicle's MA (admin only); the onboard applies it as an emergency stop."""
     message = _changed(trail, user, vehicle_id, "rbc.ma_revoke", {}, lambda: rbc.revoke(vehicle_id))
     return _public(rbc, message)
+
+
+@router.get("/{vehicle_id}/tsr")
+def read_speed_restrictions(
+    vehicle_id: VehiclePath, rbc: RbcDep, _user: ObserverUser
+) -> list[m.SpeedRestrictionMessage]:
+    """The TSRs in force for the vehicle, in the order they were put in force (kept across a
+    restart of the trackside)."""
+    return list(rbc.restrictions(vehicle_id))
 
 
 @router.post("/{vehicle_id}/tsr", status_code=status.HTTP_201_CREATED, responses=REFUSED)
