@@ -9,15 +9,15 @@ from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
+import httpx
 import pytest
 
 from deploy.ports import free_tcp_port
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import RealTimeClock
-from protocol import ZenohSettings, open_session, request
-from protocol import messages as m
-from protocol.registry import COMMAND
+from protocol import ZenohSettings, open_session
 from tests.browser.conftest import (
+    ADMIN,
     CHROMIUM,
     CHROMIUM_ARGS,
     Artefacts,
@@ -41,15 +41,16 @@ def simulated_operators() -> tuple[str, ...]:
 
 @pytest.fixture
 def moving_vehicle(router_endpoint: str, console_url: str) -> Iterator[None]:
-    """URV1 running; after ``console_url``, whose simulated operator rearms its EB."""
-    del console_url
-    with running_urv1(router_endpoint):
+    """URV1 running, driven through the ``console_url`` trackside, whose simulated operator
+    rearms its EB."""
+    with running_urv1(router_endpoint, console_url):
         yield
 
 
 @contextmanager
-def running_urv1(router_endpoint: str) -> Iterator[None]:
-    """URV1 in real time at 5×, in remote driving at 30 km/h (once its EB is rearmed)."""
+def running_urv1(router_endpoint: str, trackside_url: str) -> Iterator[None]:
+    """URV1 in real time at 5×, in remote driving at 30 km/h (once its EB is rearmed), as the
+    operator at ``trackside_url`` commands it (only a trackside's sealed commands are taken)."""
     with open_session(ZenohSettings(connect=(router_endpoint,))) as session:
         node = OnboardNode(
             OnboardSettings(vehicle_id="URV1"),
@@ -59,24 +60,25 @@ def running_urv1(router_endpoint: str) -> Iterator[None]:
         )
         runner = threading.Thread(target=node.run, daemon=True)
         runner.start()
-        command = m.Command(
-            vehicle_id="URV1",
-            command_id=1,
-            issued_by="browser-test",
-            body=m.RemoteDrivingTargetCommand(target_speed_mps=30 / 3.6),
-        )
-        assert wait_for(lambda: _accepted(session, command), 5.0)
+        with httpx.Client(base_url=trackside_url, timeout=5.0) as client:
+            login = client.post(
+                "/api/v1/auth/token", data={"username": ADMIN[0], "password": ADMIN[1]}
+            )
+            login.raise_for_status()
+            client.headers["Authorization"] = f"Bearer {login.json()['access_token']}"
+            # Until URV1 is alive (select) and holds its session with the trackside (command).
+            assert wait_for(lambda: _drives_at_30_kmh(client), 10.0)
         yield
         node.stop()
         runner.join(5.0)
         node.close()
 
 
-def _accepted(session: object, command: m.Command) -> bool:
-    try:
-        return bool(request(session, COMMAND, command, timeout_s=0.5, vehicle="URV1").accepted)  # type: ignore[arg-type]
-    except Exception:
+def _drives_at_30_kmh(client: httpx.Client) -> bool:
+    if client.post("/api/v1/vehicles/URV1/select").status_code != 200:
         return False
+    answer = client.post("/api/v1/vehicles/URV1/rd-target-speed", json={"target_speed_kmh": 30})
+    return answer.status_code == 200 and bool(answer.json()["accepted"])
 
 
 @pytest.mark.usefixtures("moving_vehicle")
@@ -123,7 +125,7 @@ def test_the_console_reconnects_after_a_trackside_restart(
         first_service = ExitStack()
         first_service.enter_context(serving_trackside(settings, port))
         stack.callback(first_service.close)
-        stack.enter_context(running_urv1(router_endpoint))
+        stack.enter_context(running_urv1(router_endpoint, f"http://127.0.0.1:{port}/"))
         playwright = stack.enter_context(sync_playwright())
         browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
         stack.callback(browser.close)

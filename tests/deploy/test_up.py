@@ -19,8 +19,9 @@ from typer.testing import CliRunner
 
 from deploy.cli import app
 from deploy.pki import Role, init_ca, issue
+from onboard.freshness import Refusal
 from onboard.vc.datalog import read_datalog
-from protocol import TlsFiles, TransportError, ZenohSettings, open_session
+from protocol import TlsFiles, TransportError, ZenohSettings, open_session, request
 from protocol import messages as m
 from protocol.registry import COMMAND
 from tests.conftest import wait_for
@@ -143,8 +144,10 @@ def test_the_fleet_links_are_tls_and_only_its_own_parties_get_an_answer(
     up: Up, tmp_path: Path
 ) -> None:
     """Issue 20: no certificate, or one from another CA, opens no session; URV2's own
-    certificate does, but a command it sends URV1 gets no answer and its status under URV1's
-    name reaches nobody."""
+    certificate does, but a command it sends (to URV1 or to itself) gets no answer: the router
+    does not let a vehicle query a command key. The control: the same bare ping from the
+    trackside's certificate does reach URV1, which answers with its refusal (the ping is not
+    sealed for the session URV1 holds with the trackside service)."""
     assert up.router.startswith("tls/"), up.router
     plain = ZenohSettings(mode="client", connect=(up.router.replace("tls/", "tcp/"),))
     with pytest.raises(TransportError), open_session(plain, connect_timeout_s=2.0):
@@ -162,6 +165,11 @@ def test_the_fleet_links_are_tls_and_only_its_own_parties_get_an_answer(
             )
             key = COMMAND.key(vehicle=vehicle)
             assert list(session.get(key, payload=COMMAND.encode(ping), timeout=2.0)) == []
+    trackside = ZenohSettings(connect=(up.router,), tls=TlsFiles.of(tmp_path / "pki", "ts1"))
+    ping = m.Command(vehicle_id="URV1", command_id=1, issued_by="test", body=m.PingCommand())
+    with open_session(trackside, connect_timeout_s=5.0) as session:
+        ack = request(session, COMMAND, ping, timeout_s=2.0, vehicle="URV1")
+    assert (ack.accepted, ack.reason) == (False, Refusal.UNSEALED)
 
 
 JOURNEY_WALL_S = 240.0

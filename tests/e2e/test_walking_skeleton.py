@@ -12,17 +12,17 @@ from fastapi.testclient import TestClient
 from deploy.processes import ChildProcess, ato_command
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import RealTimeClock
-from protocol import ZenohSettings, open_session, request
-from protocol import messages as m
-from protocol.registry import COMMAND
+from protocol import ZenohSettings, open_session
 from tests.conftest import wait_for
 from trackdb import TrackMap, load_seed_line
 
 pytestmark = pytest.mark.e2e
 
+VEHICLES = "/api/v1/vehicles"
+
 
 def _vehicle(client: TestClient, headers: dict[str, str], vehicle: str) -> dict[str, object] | None:
-    for item in client.get("/api/v1/vehicles", headers=headers).json():
+    for item in client.get(VEHICLES, headers=headers).json():
         if item["id"] == vehicle:
             return dict(item)
     return None
@@ -53,32 +53,28 @@ def test_vehicle_appears_then_is_reported_gone(
         # The onboard Track Database Manager asked the trackside for the line's version.
         assert wait_for(lambda: node.track_database.versions_match, 3.0)
 
-        # Drive it, through the router, and see its status change.
-        ack = request(
-            session,
-            COMMAND,
-            m.Command(
-                vehicle_id="URV1",
-                command_id=1,
-                issued_by="e2e",
-                body=m.RemoteDrivingTargetCommand(target_speed_mps=10.0),
-            ),
-            vehicle="URV1",
+        # Drive it as a control-room operator does: hold it, then command it through the
+        # trackside, which seals each command for the session both sides hold.
+        bridge = client.app.state.bridge  # type: ignore[attr-defined]
+        assert wait_for(
+            lambda: bridge.session_open("URV1") and node.session_client.established, 5.0
         )
-        assert ack.accepted
+        assert client.post(f"{VEHICLES}/URV1/select", headers=headers).status_code == 200
+        answer = client.post(
+            f"{VEHICLES}/URV1/rd-target-speed", json={"target_speed_kmh": 36.0}, headers=headers
+        )
+        assert answer.status_code == 200, answer.text
+        assert answer.json()["accepted"], answer.json()["reason"]
         # The Vital Control holds the EB from power-up until the operator confirms its rearm:
         # the request reaches the trackside in the status, the confirmation goes back.
         assert wait_for(lambda: _rearm_request(client, headers) is not None, 3.0)
-        confirm = m.OperatorConfirmCommand(
-            request=m.OperatorRequestKind.EB_REARM, number=_rearm_request(client, headers) or 0
+        answer = client.post(
+            f"{VEHICLES}/URV1/confirmations/eb-rearm",
+            json={"number": _rearm_request(client, headers)},
+            headers=headers,
         )
-        ack = request(
-            session,
-            COMMAND,
-            m.Command(vehicle_id="URV1", command_id=2, issued_by="e2e", body=confirm),
-            vehicle="URV1",
-        )
-        assert ack.accepted, ack.reason
+        assert answer.status_code == 200, answer.text
+        assert answer.json()["accepted"], answer.json()["reason"]
         assert wait_for(lambda: _speed(client, headers) > 0.1, 5.0)
 
         node.stop()
