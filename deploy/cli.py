@@ -72,8 +72,9 @@ def _logging(verbose: bool) -> None:
         level=logging.DEBUG if verbose else logging.INFO,
         format="%(asctime)s %(levelname)s %(name)s: %(message)s",
     )
-    if not verbose:
-        logging.getLogger("alembic").setLevel(logging.WARNING)
+    if not verbose:  # httpx logs each request of the demo's driver and of ``ato up``'s checks
+        for chatty in ("alembic", "httpx"):
+            logging.getLogger(chatty).setLevel(logging.WARNING)
 
 
 @app.command()

@@ -2,8 +2,9 @@
 
 The router runs in this process, URV1 in a child process, and the trackside serves the console
 here. A demo driver asks URV1 for 30 km/h in remote driving, as at the start of the seed 000 field
-test. The demo account is the only fixed password ``ato`` has; it exists only in the demo's own
-database.
+test: as a control-room operator would, through the trackside's REST API as the demo user (the
+trackside seals the command for URV1's session; the onboard takes no other). The demo account is
+the only fixed password ``ato`` has; it exists only in the demo's own database.
 """
 
 from __future__ import annotations
@@ -12,23 +13,14 @@ import logging
 import threading
 from pathlib import Path
 
+import httpx
 from rich.console import Console
 
 from deploy.pki import deployment_pki
 from deploy.processes import ChildProcess, ato_command
-from protocol import (
-    LivelinessWatcher,
-    ProtocolError,
-    TlsFiles,
-    ZenohSettings,
-    open_session,
-    request,
-)
-from protocol import messages as m
+from protocol import TlsFiles
 from protocol.access import access_control
-from protocol.registry import ALIVE_ONBOARD, COMMAND
 from protocol.router import run_router
-from protocol.units import MPS_PER_KMH
 
 __all__ = ["DEMO_PASSWORD", "DEMO_USER", "DEMO_VEHICLE", "run_demo"]
 
@@ -36,44 +28,53 @@ DEMO_USER = "demo"
 DEMO_PASSWORD = "ato-demo"
 DEMO_VEHICLE = "URV1"
 DEMO_ROUTER = "tls/127.0.0.1:7447"
-DEMO_DRIVER = "demo-driver"
-"""The demo's driver commands URV1 over Zenoh as a trackside service does, with a trackside
-certificate of its own (only tracksides may command a vehicle)."""
-DEMO_TARGET_SPEED_MPS = 30.0 * MPS_PER_KMH
+DEMO_TARGET_SPEED_KMH = 30.0
+DEMO_DRIVER_RETRY_S = 1.0
+"""Wall time between two attempts of the demo driver (service starting, URV1 not alive yet,
+or not yet in session with the trackside)."""
 
 _log = logging.getLogger(__name__)
 
 
-def _demo_driver(stop: threading.Event, pki: Path) -> None:
-    """Once URV1 is alive, ask it for the demo speed until it accepts (the trackside's simulated
-    operator answers the Vital Control's requests)."""
-    settings = ZenohSettings(connect=(DEMO_ROUTER,), tls=TlsFiles.of(pki, DEMO_DRIVER))
-    with open_session(settings) as session:
-        alive = threading.Event()
-        key = ALIVE_ONBOARD.format(vehicle=DEMO_VEHICLE)
-        with LivelinessWatcher(session, key, lambda _key, up: alive.set() if up else None):
-            command_id = 0
-            while not stop.is_set():
-                if not alive.wait(0.5):
-                    continue
-                command = m.Command(
-                    vehicle_id=DEMO_VEHICLE,
-                    command_id=command_id,
-                    issued_by="demo-driver",
-                    body=m.RemoteDrivingTargetCommand(target_speed_mps=DEMO_TARGET_SPEED_MPS),
-                )
-                command_id += 1
-                try:
-                    ack = request(session, COMMAND, command, vehicle=DEMO_VEHICLE)
-                except ProtocolError as exc:
-                    _log.warning("demo driver: %s", exc)
-                    stop.wait(1.0)
-                    continue
-                if ack.accepted:
-                    _log.info("demo driver: %s accepted 30 km/h", DEMO_VEHICLE)
-                    break
-                stop.wait(1.0)
-            stop.wait()
+def _demo_driver(stop: threading.Event, base_url: str) -> None:
+    """Log in as the demo user, hold URV1 and ask it for the demo speed until it accepts (the
+    trackside's simulated operator answers the Vital Control's requests)."""
+    with httpx.Client(base_url=base_url, timeout=10.0) as client:
+        while not stop.is_set():
+            try:
+                if _drive_demo_vehicle(client):
+                    _log.info(
+                        "demo driver: %s accepted %g km/h", DEMO_VEHICLE, DEMO_TARGET_SPEED_KMH
+                    )
+                    return
+            except httpx.HTTPStatusError as exc:  # the login refused: retrying would lock it
+                _log.warning("demo driver: %s; %s is not driven", exc, DEMO_VEHICLE)
+                return
+            except httpx.HTTPError as exc:  # the service is not serving yet, or is going
+                _log.debug("demo driver: %s", exc)
+            stop.wait(DEMO_DRIVER_RETRY_S)
+
+
+def _drive_demo_vehicle(client: httpx.Client) -> bool:
+    """One attempt: log in (once), select URV1, ask for the demo speed; True once accepted."""
+    if "Authorization" not in client.headers:
+        login = client.post(
+            "/api/v1/auth/token", data={"username": DEMO_USER, "password": DEMO_PASSWORD}
+        )
+        login.raise_for_status()
+        client.headers["Authorization"] = f"Bearer {login.json()['access_token']}"
+    vehicle = f"/api/v1/vehicles/{DEMO_VEHICLE}"
+    if client.post(f"{vehicle}/select").status_code != httpx.codes.OK:
+        return False  # URV1 not seen yet
+    answer = client.post(
+        f"{vehicle}/rd-target-speed", json={"target_speed_kmh": DEMO_TARGET_SPEED_KMH}
+    )
+    if answer.status_code != httpx.codes.OK:
+        return False  # not alive yet, or did not answer in time
+    ack = answer.json()
+    if not ack["accepted"]:
+        _log.info("demo driver: %s refused: %s", DEMO_VEHICLE, ack["reason"])
+    return bool(ack["accepted"])
 
 
 def _start_router(stop: threading.Event, pki: Path, *, tracksides: list[str]) -> threading.Thread:
@@ -105,11 +106,9 @@ def run_demo(*, port: int, data_dir: Path) -> None:
 
     data_dir.mkdir(parents=True, exist_ok=True)
     trackside = "ts1"
-    pki = deployment_pki(
-        data_dir / "pki", vehicles=[DEMO_VEHICLE], tracksides=[trackside, DEMO_DRIVER]
-    )
+    pki = deployment_pki(data_dir / "pki", vehicles=[DEMO_VEHICLE], tracksides=[trackside])
     stop = threading.Event()
-    router = _start_router(stop, pki, tracksides=[trackside, DEMO_DRIVER])
+    router = _start_router(stop, pki, tracksides=[trackside])
 
     settings = Settings(
         database_url=f"sqlite:///{(data_dir / 'demo.db').resolve()}",
@@ -139,7 +138,8 @@ def run_demo(*, port: int, data_dir: Path) -> None:
         log_file=data_dir / f"onboard-{DEMO_VEHICLE}.log",
     )
     with onboard:
-        driver = threading.Thread(target=_demo_driver, args=(stop, pki), daemon=True)
+        base_url = f"http://127.0.0.1:{port}"
+        driver = threading.Thread(target=_demo_driver, args=(stop, base_url), daemon=True)
         driver.start()
         console = Console()
         console.rule("[bold]ato demo")
@@ -147,7 +147,10 @@ def run_demo(*, port: int, data_dir: Path) -> None:
         console.print(
             f"Login:    user [bold]{DEMO_USER}[/bold]  password [bold]{DEMO_PASSWORD}[/bold]"
         )
-        console.print(f"Vehicle:  {DEMO_VEHICLE} on bologna-ring, remote driving at 30 km/h")
+        console.print(
+            f"Vehicle:  {DEMO_VEHICLE} on bologna-ring,"
+            f" remote driving at {DEMO_TARGET_SPEED_KMH:g} km/h"
+        )
         console.print(f"Zenoh:    {DEMO_ROUTER}, TLS and access control (certificates in {pki})")
         console.print(f"VC:       2-out-of-2, datalog {datalog} (ato vc replay)")
         console.print(f"Logs:     {data_dir}/   Stop with Ctrl-C")
