@@ -1,7 +1,10 @@
 """``ato bench zenoh``: trackside→onboard command round trip over Zenoh.
 
 Measures the time from the trackside sending a command query to it holding the onboard's
-validated acknowledgement, with the real :class:`~onboard.node.OnboardNode` answering:
+validated acknowledgement, with the real :class:`~onboard.node.OnboardNode` answering. The
+trackside is a real :class:`~trackside.bridge.ZenohBridge`: the vehicle opens its session with
+it first, and each ping goes out sealed for that session (the onboard refuses any other, issue
+20), so what is measured is an accepted command, sealing and checks included:
 
 - in-process, peer to peer: both sessions in this process, one connected to the other;
 - in-process, through a router: both sessions and a router in this process;
@@ -31,49 +34,85 @@ from deploy.processes import ChildProcess, ato_command
 from deploy.stats import percentiles
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import SimClock
-from protocol import (
-    LivelinessWatcher,
-    RequestTimeoutError,
-    TlsFiles,
-    ZenohSettings,
-    open_session,
-    request,
-)
+from protocol import RequestTimeoutError, TlsFiles, ZenohSettings, open_session
 from protocol import messages as m
 from protocol.access import access_control
-from protocol.registry import ALIVE_ONBOARD, COMMAND
 from protocol.router import run_router
 from trackdb import TrackMap, load_seed_line
+from trackside.bridge import ZenohBridge
 
-__all__ = ["bench_zenoh", "measure_round_trips"]
+__all__ = ["bench_zenoh", "measure_round_trips", "open_vehicle_session", "trackside_bridge"]
 
 VEHICLE = "BENCH1"
 TRACKSIDE = "ts1"
+LINE = "bologna-ring"
+STEP_S = 0.1
+"""Simulated time an in-process node is run for at a time while it opens its session [s]."""
 
 
-def measure_round_trips(session: zenoh.Session, *, count: int, warmup: int) -> list[float]:
-    """Round-trip times [s] of ``count`` ping commands after ``warmup`` unmeasured ones."""
+def measure_round_trips(bridge: ZenohBridge, *, count: int, warmup: int) -> list[float]:
+    """Round-trip times [s] of ``count`` ping commands after ``warmup`` unmeasured ones, sent
+    through the trackside's ``bridge`` (sealed for the vehicle's session: open it first with
+    :func:`open_vehicle_session`); each must be accepted."""
     samples: list[float] = []
     for index in range(warmup + count):
         command = m.Command(
             vehicle_id=VEHICLE, command_id=index, issued_by="bench", body=m.PingCommand()
         )
         started = time.perf_counter()
-        ack = request(session, COMMAND, command, timeout_s=2.0, vehicle=VEHICLE)
+        ack = bridge.command(command, timeout_s=2.0)
         elapsed = time.perf_counter() - started
-        if not ack.accepted or ack.command_id != index:
-            raise RuntimeError(f"unexpected acknowledgement {ack}")
+        if not ack.accepted:
+            raise RuntimeError(f"{VEHICLE} refused ping {index}: {ack.reason}")
         if index >= warmup:
             samples.append(elapsed)
     return samples
 
 
-def _wait_alive(session: zenoh.Session, timeout_s: float) -> None:
-    alive = threading.Event()
-    key = ALIVE_ONBOARD.format(vehicle=VEHICLE)
-    with LivelinessWatcher(session, key, lambda _key, up: alive.set() if up else None):
-        if not alive.wait(timeout_s):
-            raise RequestTimeoutError(f"{VEHICLE} did not come alive within {timeout_s} s")
+def trackside_bridge(session: zenoh.Session) -> ZenohBridge:
+    """The bench's trackside, as ATO-TS's: it answers the vehicle's handshake and its query for
+    the line's version, acknowledges its reports and seals each command for its session."""
+    version = TrackMap(load_seed_line(LINE)).version
+    return ZenohBridge(
+        session,
+        instance_id=TRACKSIDE,
+        line_version=lambda line_id: version if line_id == LINE else None,
+    )
+
+
+def open_vehicle_session(
+    bridge: ZenohBridge, timeout_s: float, *, node: OnboardNode | None = None
+) -> None:
+    """Wait (wall time) until the vehicle holds a session with ``bridge`` and takes its
+    commands: a ping through it is accepted (the vehicle takes the handshake's answer at its
+    next session tick, after the trackside has opened its side). An in-process ``node`` that
+    nothing runs is run meanwhile, :data:`STEP_S` at a time: its handshake is one of its tasks.
+    Raises :class:`~protocol.RequestTimeoutError` after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    ping = m.Command(vehicle_id=VEHICLE, command_id=0, issued_by="bench", body=m.PingCommand())
+    changed = threading.Event()  # set by each report, handshake and liveliness change
+    bridge.add_listener(changed.set)
+    try:
+        while not (bridge.session_open(VEHICLE) and bridge.command(ping, timeout_s=2.0).accepted):
+            if time.monotonic() > deadline:
+                raise RequestTimeoutError(f"{VEHICLE} opened no session within {timeout_s} s")
+            if node is None:
+                changed.wait(STEP_S)
+                changed.clear()
+            else:
+                node.run(STEP_S)
+    finally:
+        bridge.remove_listener(changed.set)
+
+
+@contextmanager
+def _trackside(settings: ZenohSettings) -> Iterator[ZenohBridge]:
+    with open_session(settings) as session:
+        bridge = trackside_bridge(session)
+        try:
+            yield bridge
+        finally:
+            bridge.close()
 
 
 @dataclass(frozen=True)
@@ -118,8 +157,8 @@ def _router(endpoint: str, links: _Links) -> Iterator[None]:
 
 
 @contextmanager
-def _onboard_in_process(settings: ZenohSettings) -> Iterator[None]:
-    track_map = TrackMap(load_seed_line("bologna-ring"))
+def _onboard_in_process(settings: ZenohSettings) -> Iterator[OnboardNode]:
+    track_map = TrackMap(load_seed_line(LINE))
     with open_session(settings) as session:
         node = OnboardNode(
             OnboardSettings(vehicle_id=VEHICLE),
@@ -128,7 +167,7 @@ def _onboard_in_process(settings: ZenohSettings) -> Iterator[None]:
             track_map=track_map,
         )
         try:
-            yield
+            yield node
         finally:
             node.close()
 
@@ -143,8 +182,8 @@ def _in_process_peer(links: _Links, count: int, warmup: int) -> list[float]:
         access_control=links.rules(),
     )
     onboard = ZenohSettings(mode="peer", connect=(endpoint,), tls=links.tls(VEHICLE))
-    with open_session(trackside_settings) as trackside, _onboard_in_process(onboard):
-        _wait_alive(trackside, 5.0)
+    with _trackside(trackside_settings) as trackside, _onboard_in_process(onboard) as node:
+        open_vehicle_session(trackside, 5.0, node=node)
         return measure_round_trips(trackside, count=count, warmup=warmup)
 
 
@@ -152,10 +191,10 @@ def _in_process_router(links: _Links, count: int, warmup: int) -> list[float]:
     endpoint = links.endpoint()
     with (
         _router(endpoint, links),
-        open_session(ZenohSettings(connect=(endpoint,), tls=links.tls(TRACKSIDE))) as trackside,
-        _onboard_in_process(ZenohSettings(connect=(endpoint,), tls=links.tls(VEHICLE))),
+        _trackside(ZenohSettings(connect=(endpoint,), tls=links.tls(TRACKSIDE))) as trackside,
+        _onboard_in_process(ZenohSettings(connect=(endpoint,), tls=links.tls(VEHICLE))) as node,
     ):
-        _wait_alive(trackside, 5.0)
+        open_vehicle_session(trackside, 5.0, node=node)
         return measure_round_trips(trackside, count=count, warmup=warmup)
 
 
@@ -170,8 +209,8 @@ def _across_processes(links: _Links, count: int, warmup: int) -> list[float]:
         stack.enter_context(ChildProcess(ato_command(*router)))
         stack.enter_context(ChildProcess(ato_command(*onboard)))
         settings = ZenohSettings(connect=(endpoint,), tls=links.tls(TRACKSIDE))
-        trackside = stack.enter_context(open_session(settings))
-        _wait_alive(trackside, 30.0)
+        trackside = stack.enter_context(_trackside(settings))
+        open_vehicle_session(trackside, 30.0)
         return measure_round_trips(trackside, count=count, warmup=warmup)
 
 
@@ -207,7 +246,7 @@ def _figures(samples: list[float]) -> dict[str, float]:
 
 
 def _print_table(console: Console, results: dict[str, dict[str, float]]) -> None:
-    table = Table(title="trackside→onboard command round trip (ping → CommandAck)")
+    table = Table(title="trackside→onboard command round trip (sealed ping → accepted CommandAck)")
     for column in ("case", "n", "median [ms]", "p99 [ms]", "max [ms]"):
         table.add_column(column, justify="left" if column == "case" else "right")
     for name, figures in results.items():
