@@ -36,9 +36,11 @@ RING = TrackMap(load_seed_line("bologna-ring"))
 class Vehicle:
     """The onboard in lockstep, with an operator's hands: commands and a running clock."""
 
-    def __init__(self, session: zenoh.Session, operator: zenoh.Session) -> None:
+    def __init__(
+        self, session: zenoh.Session, operator: zenoh.Session, *, vital_control: bool = True
+    ) -> None:
         self.node = OnboardNode(
-            OnboardSettings(vehicle_id="URV1"),
+            OnboardSettings(vehicle_id="URV1", vital_control=vital_control),
             session=session,
             clock=SimClock(),
             track_map=RING,
@@ -228,7 +230,10 @@ def test_trackside_loss_while_engaged_ends_at_the_next_stopping_point(
 ) -> None:
     connect = ZenohSettings(connect=(router_endpoint,))
     with open_session(connect) as session, open_session(connect) as operator:
-        vehicle = Vehicle(session, operator)
+        # Without the Vital Control: with the trackside gone nobody may answer its vigilance
+        # requests (every 30 s), and it would brake at the first deadline (the zenoh-link-loss
+        # scenario shows that); here the ATO-OB's own fallback is under test.
+        vehicle = Vehicle(session, operator, vital_control=False)
         try:
             with running_trackside(router_endpoint, tmp_path) as (client, headers):
                 vehicle.attach(client)
