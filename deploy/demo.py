@@ -141,22 +141,25 @@ def run_demo(*, port: int, data_dir: Path) -> None:
         base_url = f"http://127.0.0.1:{port}"
         driver = threading.Thread(target=_demo_driver, args=(stop, base_url), daemon=True)
         driver.start()
-        console = Console()
-        console.rule("[bold]ato demo")
-        console.print(f"Console:  [bold]http://127.0.0.1:{port}/[/bold]")
-        console.print(
-            f"Login:    user [bold]{DEMO_USER}[/bold]  password [bold]{DEMO_PASSWORD}[/bold]"
-        )
-        console.print(
-            f"Vehicle:  {DEMO_VEHICLE} on bologna-ring,"
-            f" remote driving at {DEMO_TARGET_SPEED_KMH:g} km/h"
-        )
-        console.print(f"Zenoh:    {DEMO_ROUTER}, TLS and access control (certificates in {pki})")
-        console.print(f"VC:       2-out-of-2, datalog {datalog} (ato vc replay)")
-        console.print(f"Logs:     {data_dir}/   Stop with Ctrl-C")
-        console.rule()
+        _print_banner(port, pki, datalog, data_dir)
         try:
             uvicorn.run(create_app(settings), host="127.0.0.1", port=port, log_level="warning")
         finally:
             stop.set()
     router.join(5.0)
+
+
+def _print_banner(port: int, pki: Path, datalog: Path, data_dir: Path) -> None:
+    """Where the console is, how to log in, what runs."""
+    console = Console()
+    console.rule("[bold]ato demo")
+    console.print(f"Console:  [bold]http://127.0.0.1:{port}/[/bold]")
+    console.print(f"Login:    user [bold]{DEMO_USER}[/bold]  password [bold]{DEMO_PASSWORD}[/bold]")
+    console.print(
+        f"Vehicle:  {DEMO_VEHICLE} on bologna-ring,"
+        f" remote driving at {DEMO_TARGET_SPEED_KMH:g} km/h"
+    )
+    console.print(f"Zenoh:    {DEMO_ROUTER}, TLS and access control (certificates in {pki})")
+    console.print(f"VC:       2-out-of-2, datalog {datalog} (ato vc replay)")
+    console.print(f"Logs:     {data_dir}/   Stop with Ctrl-C")
+    console.rule()

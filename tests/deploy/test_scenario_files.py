@@ -113,7 +113,7 @@ def test_a_zenoh_link_loss_has_a_window_and_a_mode() -> None:
     spec = load_scenario("zenoh-link-loss")
     (fault,) = spec.faults
     assert fault.kind == "zenoh_link_loss"
-    assert (fault.start_s, fault.end_s, fault.mode) == (272.0, 297.0, "silent")
+    assert (fault.start_s, fault.end_s, fault.mode) == (272.0, 306.0, "silent")
     text = MINIMAL + '\n[[faults]]\nkind = "zenoh_link_loss"\nstart_s = 5\nmode = "flaky"\n'
     with pytest.raises(ScenarioFileError, match="faults.0.zenoh_link_loss.mode"):
         parse_scenario(text, path="bad.toml")

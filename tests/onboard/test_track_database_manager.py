@@ -10,11 +10,12 @@ import zenoh
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import SimClock
 from onboard.track_database_manager import TrackDatabaseManager
-from protocol import TypedPublisher, TypedQueryable, TypedSubscriber
+from protocol import TypedPublisher, TypedSubscriber
 from protocol import messages as m
-from protocol.registry import JOURNEY_PROFILE, JOURNEY_PROFILE_ACK, LINE_VERSION
+from protocol.registry import JOURNEY_PROFILE, JOURNEY_PROFILE_ACK
 from tests.conftest import wait_for
 from trackdb import TrackMap, load_seed_line
+from trackside.bridge import ZenohBridge
 
 RING = TrackMap(load_seed_line("bologna-ring"))
 
@@ -92,29 +93,28 @@ def test_localise_wraps_on_the_ring() -> None:
 @pytest.fixture
 def node_with_trackside(
     zenoh_pair: tuple[zenoh.Session, zenoh.Session],
-) -> Iterator[tuple[OnboardNode, zenoh.Session]]:
+) -> Iterator[tuple[OnboardNode, zenoh.Session, ZenohBridge]]:
+    """The node beside a trackside's bridge that holds the ring (it answers the track-data query
+    and the handshake, and seals what is sent in the session)."""
     trackside, onboard = zenoh_pair
-
-    def answer(chunks: dict[str, str], _request: m.LineVersionRequest) -> m.LineVersionReply:
-        return m.LineVersionReply(line_id=chunks["line"], version=RING.version)
-
-    with TypedQueryable(trackside, LINE_VERSION, answer):
-        node = OnboardNode(
-            OnboardSettings(vehicle_id="URV1"), session=onboard, clock=SimClock(), track_map=RING
-        )
-        yield node, trackside
-        node.close()
+    bridge = ZenohBridge(trackside, instance_id="ts-test", line_version=lambda _line: RING.version)
+    node = OnboardNode(
+        OnboardSettings(vehicle_id="URV1"), session=onboard, clock=SimClock(), track_map=RING
+    )
+    yield node, trackside, bridge
+    node.close()
+    bridge.close()
 
 
 def test_node_checks_versions_and_acknowledges_journeys(
-    node_with_trackside: tuple[OnboardNode, zenoh.Session],
+    node_with_trackside: tuple[OnboardNode, zenoh.Session, ZenohBridge],
 ) -> None:
-    node, trackside = node_with_trackside
+    node, trackside, bridge = node_with_trackside
 
     # The track_data task asks at t = 0; the answer is taken at a later commands tick.
     def versions_checked() -> bool:
         node.run(0.05)
-        return node.track_database.versions_match
+        return node.track_database.versions_match and node.session_client.established
 
     assert wait_for(versions_checked)
     acks: list[m.JourneyProfileAck] = []
@@ -125,14 +125,14 @@ def test_node_checks_versions_and_acknowledges_journeys(
         bad = _profile(version="e" * 64, journey_id="stale")
 
         def stale_journey_answered() -> bool:
-            journeys.put(bad)
+            journeys.put(bad.model_copy(update={"freshness": bridge.seal("URV1")}))
             node.run(0.05)
             return bool(acks)
 
         assert wait_for(stale_journey_answered)
         assert not acks[0].accepted
         assert "other track data" in (acks[0].reason or "")
-        journeys.put(_profile())
+        journeys.put(_profile().model_copy(update={"freshness": bridge.seal("URV1")}))
 
         def journey_accepted() -> bool:
             node.run(0.05)

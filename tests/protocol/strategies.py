@@ -9,6 +9,8 @@ from hypothesis import strategies as st
 from protocol import messages as m
 
 vehicle_ids = st.from_regex(r"^[A-Za-z0-9_-]{1,32}$", fullmatch=True)
+session_ids = st.from_regex(r"^[A-Za-z0-9_-]{8,64}$", fullmatch=True)
+seals = st.none() | st.builds(m.Freshness, session_id=session_ids, number=st.integers(1, 2**53))
 names = st.text(min_size=1, max_size=64)
 finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
 non_negative = st.floats(min_value=0.0, max_value=1e9, allow_nan=False)
@@ -105,7 +107,12 @@ command_bodies = st.one_of(
 )
 
 commands = st.builds(
-    m.Command, vehicle_id=vehicle_ids, command_id=counters, issued_by=names, body=command_bodies
+    m.Command,
+    vehicle_id=vehicle_ids,
+    command_id=counters,
+    issued_by=names,
+    body=command_bodies,
+    freshness=seals,
 )
 
 command_acks = st.builds(
@@ -167,6 +174,7 @@ session_requests = st.builds(
 session_accepts = st.builds(
     m.SessionAccept,
     trackside_id=names,
+    session_id=session_ids,
     version=st.integers(1, 1000),
     response_timeout_s=st.floats(min_value=0.001, max_value=600.0),
     status_interval_s=st.floats(min_value=0.001, max_value=60.0),

@@ -149,6 +149,7 @@ RULES: dict[tuple[str, str], Rule] = {
     ("POST", "/api/v1/journeys"): Rule("driver", 201, json=lambda: JOURNEY),
     ("GET", "/api/v1/journeys/{journey_id}"): Rule("observer"),
     ("GET", "/api/v1/rbc/{vehicle_id}/ma"): Rule("observer", prepare=_issue_ma),
+    ("GET", "/api/v1/rbc/{vehicle_id}/tsr"): Rule("observer"),
     ("POST", "/api/v1/rbc/{vehicle_id}/ma"): Rule("admin", 201, json=lambda: MA),
     ("DELETE", "/api/v1/rbc/{vehicle_id}/ma"): Rule("admin", prepare=_issue_ma),
     ("POST", "/api/v1/rbc/{vehicle_id}/ma/extend"): Rule(
