@@ -22,32 +22,13 @@ from typer.testing import CliRunner
 from deploy.cli import app as cli
 from tests.conftest import _postgres_database, wait_for
 from tests.trackside.conftest import ADMIN, headers_of, running_service, running_vehicle
+from tests.trackside.test_remote_driver import JOURNEY as MATRIX_JOURNEY
+from tests.trackside.test_remote_driver import MA, TSR
 
 pytestmark = pytest.mark.e2e
 
 V = "/api/v1/vehicles/{vehicle_id}"
-JOURNEY = {
-    "id": "audited",
-    "line_id": "bologna-ring",
-    "start_position_m": 0.0,
-    "max_speed_mps": 10.0,
-    "timing_points": [
-        {
-            "id": "east",
-            "stopping_point_id": "east",
-            "arrival_time_s": 400.0,
-            "end_of_journey": True,
-        },
-    ],
-}
-MA = {"line_id": "bologna-ring", "start_m": 100.0, "end_of_authority_m": 900.0}
-TSR = {
-    "id": "works",
-    "line_id": "bologna-ring",
-    "start_m": 4000.0,
-    "end_m": 4200.0,
-    "speed_kmh": 30.0,
-}
+JOURNEY = {**MATRIX_JOURNEY, "id": "audited"}
 MUTATING = {"POST", "PUT", "PATCH", "DELETE"}
 
 
