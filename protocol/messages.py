@@ -39,6 +39,8 @@ __all__ = [
     "JourneyProfile",
     "JourneyProfileAck",
     "JourneyProfileStatus",
+    "LineDocumentReply",
+    "LineDocumentRequest",
     "LineVersionReply",
     "LineVersionRequest",
     "Message",
@@ -280,6 +282,16 @@ class StatusReport(Message):
         default=None, description="The ADF's reference speed now (ODP in AD, target in RD) [m/s]"
     )
     train_hold: bool = Field(default=False, description="Held at the next stopping point")
+    track_data_version: str | None = Field(
+        default=None,
+        max_length=128,
+        description="The version (SHA-256) of the track data the onboard drives on",
+    )
+    track_data_pending: str | None = Field(
+        default=None,
+        max_length=128,
+        description="A newer version received and verified, waiting for standstill to switch",
+    )
 
 
 class EventSeverity(StrEnum):
@@ -466,6 +478,28 @@ class LineVersionReply(Message):
 
     line_id: str = Field(min_length=1, max_length=64)
     version: str | None = Field(default=None, max_length=128)
+
+
+MAX_LINE_DOCUMENT_CHARS = 64_000_000
+"""The largest line document carried over Zenoh [characters of canonical JSON]: a line of
+several hundred kilometres with its geodetic polyline stays far below it."""
+
+
+class LineDocumentRequest(Message):
+    """An onboard asks the trackside for a line's document (its track data), to load it."""
+
+    vehicle_id: VehicleId
+    line_id: str = Field(min_length=1, max_length=64)
+
+
+class LineDocumentReply(Message):
+    """The trackside's current version of a line and its document (the canonical JSON whose
+    SHA-256 is the version); both ``None`` if it does not hold the line. The onboard checks
+    the SHA-256 before it stores or uses the document."""
+
+    line_id: str = Field(min_length=1, max_length=64)
+    version: str | None = Field(default=None, max_length=128)
+    document: str | None = Field(default=None, max_length=MAX_LINE_DOCUMENT_CHARS)
 
 
 class SessionRequest(Message):

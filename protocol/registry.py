@@ -39,6 +39,7 @@ __all__ = [
     "EVENT",
     "JOURNEY_PROFILE",
     "JOURNEY_PROFILE_ACK",
+    "LINE_DOCUMENT",
     "LINE_VERSION",
     "MOVEMENT_AUTHORITY",
     "MOVEMENT_AUTHORITY_ACK",
@@ -230,6 +231,14 @@ LINE_VERSION: QueryTopic[m.LineVersionRequest, m.LineVersionReply] = QueryTopic(
     Delivery.QUERY,
     reply_type=m.LineVersionReply,
 )
+LINE_DOCUMENT: QueryTopic[m.LineDocumentRequest, m.LineDocumentReply] = QueryTopic(
+    "line_document",
+    "ato/ts/line/{line}/document",
+    m.LineDocumentRequest,
+    Direction.ONBOARD_TO_TRACKSIDE,
+    Delivery.QUERY,
+    reply_type=m.LineDocumentReply,
+)
 SESSION: QueryTopic[m.SessionRequest, m.SessionResponse] = QueryTopic(
     "session",
     "ato/ts/session/{vehicle}",
@@ -296,6 +305,7 @@ RegistryTopic: TypeAlias = (
     | Topic[m.JourneyProfile]
     | Topic[m.JourneyProfileAck]
     | QueryTopic[m.LineVersionRequest, m.LineVersionReply]
+    | QueryTopic[m.LineDocumentRequest, m.LineDocumentReply]
     | QueryTopic[m.SessionRequest, m.SessionResponse]
     | Topic[m.StatusAck]
     | Topic[m.SessionTermination]
@@ -315,6 +325,7 @@ TOPICS: tuple[RegistryTopic, ...] = (
     JOURNEY_PROFILE,
     JOURNEY_PROFILE_ACK,
     LINE_VERSION,
+    LINE_DOCUMENT,
     SESSION,
     STATUS_ACK,
     SESSION_TERMINATION,

@@ -76,6 +76,8 @@ status_reports = st.builds(
         max_size=3,
     ).map(tuple),
     vital_control=st.none() | vital_control_statuses,
+    track_data_version=st.none() | st.text(min_size=1, max_size=128),
+    track_data_pending=st.none() | st.text(min_size=1, max_size=128),
 )
 
 events = st.builds(
@@ -195,6 +197,13 @@ line_version_requests = st.builds(m.LineVersionRequest, vehicle_id=vehicle_ids, 
 line_version_replies = st.builds(
     m.LineVersionReply, line_id=names, version=st.none() | st.text(min_size=1, max_size=128)
 )
+line_document_requests = st.builds(m.LineDocumentRequest, vehicle_id=vehicle_ids, line_id=names)
+line_document_replies = st.builds(
+    m.LineDocumentReply,
+    line_id=names,
+    version=st.none() | st.text(min_size=1, max_size=128),
+    document=st.none() | st.text(max_size=2000),
+)
 
 chainages = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False)
 lengths = st.floats(min_value=1e-3, max_value=1e5, allow_nan=False)
@@ -292,6 +301,8 @@ STRATEGIES: dict[type[m.Message], st.SearchStrategy[Any]] = {
     m.JourneyProfileAck: journey_profile_acks,
     m.LineVersionRequest: line_version_requests,
     m.LineVersionReply: line_version_replies,
+    m.LineDocumentRequest: line_document_requests,
+    m.LineDocumentReply: line_document_replies,
     m.SessionRequest: session_requests,
     m.SessionAccept: session_accepts,
     m.SessionReject: session_rejects,
