@@ -39,6 +39,7 @@ from protocol.registry import (
     EVENT,
     JOURNEY_PROFILE,
     JOURNEY_PROFILE_ACK,
+    LINE_DOCUMENT,
     LINE_VERSION,
     SESSION,
     SESSION_TERMINATION,
@@ -60,6 +61,9 @@ StatusObserver = Callable[[m.StatusReport], object]
 EventObserver = Callable[[m.Event], object]
 LineVersionLookup = Callable[[str], str | None]
 """The current version of a line, ``None`` when the trackside does not hold it."""
+LineDocumentLookup = Callable[[str], tuple[str, str] | None]
+"""The current canonical JSON of a line and its version, ``None`` when the trackside does not
+hold it."""
 
 
 @dataclass(frozen=True)
@@ -80,6 +84,7 @@ class ZenohBridge:
         *,
         instance_id: str,
         line_version: LineVersionLookup | None = None,
+        line_document: LineDocumentLookup | None = None,
         clock: Callable[[], float] = time.monotonic,
         sessions: SessionManager | None = None,
     ) -> None:
@@ -106,6 +111,10 @@ class ZenohBridge:
         )
         self._line_version = line_version
         self._line_versions = TypedQueryable(session, LINE_VERSION, self._answer_line_version)
+        self.line_document = line_document
+        """Where line documents are read (the service's database); replaceable (a test injects
+        a corrupted transfer through it)."""
+        self._line_documents = TypedQueryable(session, LINE_DOCUMENT, self._answer_line_document)
         self._handshakes = TypedQueryable(session, SESSION, self._answer_session)
         self._terminations = TypedSubscriber(
             session, SESSION_TERMINATION, on_message=self._on_termination, vehicle="*"
@@ -125,6 +134,20 @@ class ZenohBridge:
             raise ValueError(f"request for {request.line_id} sent on {chunks['line']}'s key")
         version = None if self._line_version is None else self._line_version(request.line_id)
         return m.LineVersionReply(line_id=request.line_id, version=version)
+
+    def _answer_line_document(
+        self, chunks: dict[str, str], request: m.LineDocumentRequest
+    ) -> m.LineDocumentReply:
+        """A line's track data for an onboard that lacks them (read on Zenoh's thread)."""
+        if request.line_id != chunks["line"]:
+            raise ValueError(f"request for {request.line_id} sent on {chunks['line']}'s key")
+        lookup = self.line_document
+        found = None if lookup is None else lookup(request.line_id)
+        if found is None:
+            return m.LineDocumentReply(line_id=request.line_id)
+        document, version = found
+        _log.info("line %s (%s) sent to %s", request.line_id, version[:12], request.vehicle_id)
+        return m.LineDocumentReply(line_id=request.line_id, version=version, document=document)
 
     @property
     def status_stats(self) -> object:
@@ -340,6 +363,7 @@ class ZenohBridge:
         self._terminations.close()
         self._journey_acks.close()
         self._line_versions.close()
+        self._line_documents.close()
         self._liveliness.close()
         self._status.close()
         with self._session_lock:

@@ -84,6 +84,15 @@ def _line_version(factory: sessionmaker[Session], line_id: str) -> str | None:
             return None
 
 
+def _line_document(factory: sessionmaker[Session], line_id: str) -> tuple[str, str] | None:
+    """The canonical JSON and version of a stored line, for an onboard that lacks them."""
+    with factory() as db:
+        try:
+            return lines_service.line_document(db, line_id)
+        except LineNotFoundError:
+            return None
+
+
 def _line_info(factory: sessionmaker[Session], line_id: str) -> LineInfo | None:
     """The current version and extent of a stored line, for the RBC's checks."""
     with factory() as db:
@@ -217,6 +226,7 @@ def _start_bridge(
         session,
         instance_id=settings.instance_id,
         line_version=lambda line_id: _line_version(factory, line_id),
+        line_document=lambda line_id: _line_document(factory, line_id),
     )
     app.state.bridge = bridge
     bridge.observe(status=recorder.offer_status, event=recorder.offer_event)
