@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -20,7 +21,7 @@ from deploy.scenario.runner import RunOptions, RunOutcome, ScenarioRunError, run
 if TYPE_CHECKING:
     from deploy.scenario.campaign import CellResult
 
-__all__ = ["campaign_from_cli", "run_from_cli", "summary_table"]
+__all__ = ["campaign_from_cli", "run_database_url", "run_from_cli", "summary_table"]
 
 
 def run_from_cli(
@@ -39,7 +40,14 @@ def run_from_cli(
     except ScenarioFileError as exc:
         console.print(f"[red]{exc}[/red]")
         return 2
-    options = RunOptions(fast=fast, speed=speed, seed=seed, report_dir=report, insecure=insecure)
+    options = RunOptions(
+        fast=fast,
+        speed=speed,
+        seed=seed,
+        report_dir=report,
+        insecure=insecure,
+        database_url=run_database_url(),
+    )
     columns = (
         TextColumn("[bold]{task.description}"),
         BarColumn(),
@@ -66,6 +74,15 @@ def run_from_cli(
         written = "kpis.json, telemetry.npz, report.html" if outcome.columns else "kpis.json"
         console.print(f"report written to {report}/ ({written})")
     return 0 if outcome.passed else 1
+
+
+def run_database_url() -> str:
+    """Where ``ato run`` reads a stored line that is not built in: the database the trackside
+    uses, ``ATO_DATABASE_URL``, else the trackside's default."""
+    from trackside.config import Settings
+
+    default: str = Settings.model_fields["database_url"].default
+    return os.environ.get("ATO_DATABASE_URL", default)
 
 
 def _format(value: Any) -> str:

@@ -28,6 +28,7 @@ from typing import Any
 
 import numpy as np
 
+from deploy.scenario.line_source import stored_line
 from deploy.scenario.schema import (
     SHORTENED_DANGER_POINT_M,
     Action,
@@ -48,7 +49,7 @@ from deploy.scenario.space import GeneratorSpace
 from deploy.scenario.toml_out import scenario_toml
 from onboard.adf.odp import COMFORT_ACCELERATION_MPS2, leg_speed_limit_mps
 from protocol.units import MPS_PER_KMH
-from trackdb import TrackMap, load_seed_line
+from trackdb import TrackMap
 from trackdb.journey import JourneyTimingPoint
 
 __all__ = [
@@ -206,7 +207,7 @@ def draw(space: GeneratorSpace, seed: int, index: int) -> Draw:
     """Scenario ``index`` of ``seed``."""
     rng = np.random.default_rng([seed, index])
     run_seed = int(rng.integers(2**31))
-    track_map = TrackMap(load_seed_line(space.line))
+    track_map = TrackMap(stored_line(space.line))
     start = float(space.start_position_m[int(rng.integers(len(space.start_position_m)))])
     cap = _uniform(rng, space.cap_kmh, 0)
     reaction = _uniform(rng, space.reaction_s, 1)
@@ -285,7 +286,7 @@ class _Leg:
 
 
 def _geometry(space: GeneratorSpace, base: Draw) -> tuple[TrackMap, list[_Leg]]:
-    track_map = TrackMap(load_seed_line(space.line))
+    track_map = TrackMap(stored_line(space.line))
     stops = {p.id: p.position_m for p in track_map.line.stopping_points}
     cap = base.cap_kmh * MPS_PER_KMH
     here = _journey_start_m(track_map, base.start_position_m)

@@ -86,8 +86,11 @@ def _line_of(text: str, location: Sequence[object]) -> int | None:
     return None
 
 
-def parse_scenario(text: str, *, path: str = "<scenario>") -> ScenarioSpec:
-    """Parse and validate a scenario's TOML text."""
+def parse_scenario(
+    text: str, *, path: str = "<scenario>", base_dir: Path | None = None
+) -> ScenarioSpec:
+    """Parse and validate a scenario's TOML text; a relative ``line_file`` is made relative to
+    ``base_dir`` (the scenario file's directory) when one is given."""
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -97,7 +100,7 @@ def parse_scenario(text: str, *, path: str = "<scenario>") -> ScenarioSpec:
             path, int(position.group(1)) if position else None, f"TOML: {reason}"
         ) from exc
     try:
-        return ScenarioSpec.model_validate(data)
+        spec = ScenarioSpec.model_validate(data)
     except ValidationError as exc:
         error = exc.errors()[0]
         location = tuple(error["loc"])
@@ -106,6 +109,10 @@ def parse_scenario(text: str, *, path: str = "<scenario>") -> ScenarioSpec:
         where = ".".join(str(part) for part in location) or "the file"
         message = error["msg"].removeprefix("Value error, ")
         raise ScenarioFileError(path, _line_of(text, location), f"{where}: {message}") from exc
+    if spec.line_file is not None and base_dir is not None:
+        line_file = base_dir / spec.line_file
+        spec = spec.model_copy(update={"line_file": str(line_file)})
+    return spec
 
 
 def load_scenario(name_or_path: str | Path) -> ScenarioSpec:
@@ -122,7 +129,7 @@ def load_scenario(name_or_path: str | Path) -> ScenarioSpec:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioFileError(str(path), None, f"cannot read it: {exc}") from exc
-    return parse_scenario(text, path=str(path))
+    return parse_scenario(text, path=str(path), base_dir=path.parent)
 
 
 def scenario_names() -> list[str]:

@@ -54,6 +54,10 @@ class RunOptions:
     """Plain TCP between the trackside and the onboard (debugging only); by default TLS with
     certificates of a CA made for the run, the trackside's session enforcing the access
     control (docs/security.md)."""
+    database_url: str | None = None
+    """Where a scenario's ``line = "ID"`` that is not built in is read (SQLAlchemy URL; ``ato
+    run`` passes ``ATO_DATABASE_URL``, else the trackside's default); None: built-in lines
+    only (``deploy.scenario.line_source``)."""
 
 
 @dataclass

@@ -39,6 +39,7 @@ from deploy.scenario.conditions import State
 from deploy.scenario.fault_injector import FaultInjector
 from deploy.scenario.kpi_model import EstimateError, Kpis, VcIntervention
 from deploy.scenario.kpis import check_expectations
+from deploy.scenario.line_source import resolve_line
 from deploy.scenario.operator_script import OperatorScript
 from deploy.scenario.outcome import RunOutcome, build_outcome
 from deploy.scenario.report import render_report
@@ -76,7 +77,7 @@ from onboard.runtime import RealTimeClock, SimClock
 from protocol import TlsFiles, ZenohSettings, open_session
 from protocol.access import access_control
 from protocol.units import MPS_PER_KMH
-from trackdb import TrackMap, load_seed_line
+from trackdb import TrackMap
 
 __all__ = [
     "SLICE_S",
@@ -277,6 +278,7 @@ class WholeStackRun:
             isinstance(f, FrictionDrop) for f in spec.faults
         ):
             raise ScenarioRunError("friction_drop needs the bogie model (vehicle.fidelity)")
+        track_map = TrackMap(resolve_line(spec, database_url=options.database_url))
         with ExitStack() as stack:
             scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ato-run-")))
             trackside_tls, onboard_tls = _run_credentials(spec, options, scratch)
@@ -319,7 +321,7 @@ class WholeStackRun:
                 onboard_settings(spec, options, seed, scratch),
                 session=onboard_zenoh,
                 clock=SimClock() if options.fast else RealTimeClock(options.speed),
-                track_map=TrackMap(load_seed_line(spec.line)),
+                track_map=track_map,
             )
             stack.callback(node.close)
             ctx = _context(spec, options, seed, node)

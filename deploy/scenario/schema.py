@@ -25,6 +25,7 @@ __all__ = [
     "Fault",
     "InvariantSettings",
     "JourneySpec",
+    "LineImportSpec",
     "OperatorSpec",
     "ScenarioSpec",
     "VcCatalogueSpec",
@@ -36,6 +37,31 @@ Seconds = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
 
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+LineId = Annotated[str, Field(pattern=r"^[A-Za-z0-9_-]{1,64}$")]
+
+
+class LineImportSpec(_Model):
+    """How a line is built from the RailJSON infrastructure of ``line_file``: the options of
+    ``ato trackdb import --format railjson`` (``from``, ``to``, ``via``: operational points)."""
+
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, validate_by_name=True, serialize_by_alias=True
+    )
+
+    format: Literal["railjson"]
+    from_op: str = Field(alias="from", min_length=1, max_length=255)
+    """The operational point the line starts at (its chainage 0)."""
+    to_op: str = Field(alias="to", min_length=1, max_length=255)
+    """The operational point the line ends at."""
+    via: tuple[Annotated[str, Field(min_length=1, max_length=255)], ...] = Field(
+        default=(), max_length=100
+    )
+    """Operational points the path passes, in order."""
+    id: LineId
+    """The line's id."""
+    name: str | None = Field(default=None, min_length=1, max_length=128)
 
 
 class VehicleSpec(_Model):
@@ -340,7 +366,12 @@ class ScenarioSpec(_Model):
 
     name: str = Field(pattern=r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
     title: str = Field(min_length=1, max_length=200)
-    line: str = Field(pattern=r"^[A-Za-z0-9_-]{1,64}$")
+    line: LineId | None = None
+    """A stored line: built in, or in the run's database (``deploy.scenario.line_source``)."""
+    line_file: str | None = Field(default=None, min_length=1, max_length=4096)
+    """A line document, relative to the scenario file: our JSON, or RailJSON with
+    ``[line_import]``."""
+    line_import: LineImportSpec | None = None
     seed: int = Field(default=0, ge=0, lt=2**32)
     duration_s: float = Field(gt=0.0, le=100_000.0, description="Simulated time at most [s]")
     end_when: str | None = None
@@ -363,6 +394,10 @@ class ScenarioSpec(_Model):
 
     @model_validator(mode="after")
     def _consistent(self) -> ScenarioSpec:
+        if (self.line is None) == (self.line_file is None):
+            raise ValueError("name the line with line or with line_file, one of the two")
+        if self.line_import is not None and self.line_file is None:
+            raise ValueError("[line_import] goes with line_file, and only with it")
         if any(a.do == "send_journey" for a in self.actions) and self.journey is None:
             raise ValueError("a send_journey action needs a [journey]")
         return self

@@ -18,8 +18,8 @@ from typing import Annotated, Literal, get_args
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from deploy._exceptions import DeployError
+from deploy.scenario.line_source import ScenarioLineError, stored_line
 from deploy.scenario.schema import InvariantSettings, VehicleSpec
-from trackdb import load_seed_line
 
 __all__ = [
     "DEFAULT_SPACE",
@@ -189,9 +189,9 @@ class GeneratorSpace(_Model):
     @model_validator(mode="after")
     def _valid(self) -> GeneratorSpace:
         try:
-            line = load_seed_line(self.line)
-        except (KeyError, ValueError) as exc:
-            raise ValueError(f"line: no such line {self.line!r}") from exc
+            line = stored_line(self.line)
+        except ScenarioLineError as exc:
+            raise ValueError(f"line: {exc}") from exc
         if not line.stopping_points:
             raise ValueError(f"line {self.line!r} has no stopping points")
         for start in self.start_position_m:

@@ -3,7 +3,10 @@
 The trackside service runs in this process (its FastAPI app behind a ``TestClient``, on a
 SQLite file in the run's scratch directory, on the run's Zenoh session). The harness logs in as
 an admin, holds the vehicle as a driver at the console does, and makes the REST calls of the
-scenario: movement authorities and TSRs through the RBC's routes, journeys, commands. After
+scenario: movement authorities and TSRs through the RBC's routes, journeys, commands. The run's
+line is imported into that database through the lines route at each start (a built-in line is
+there already; a line of a file or a user's database is stored as the trackside of a real
+deployment would have it), so the trackside plans on the line the vehicle drives on. After
 each call that sends the vehicle a message it waits, in wall time, until the vehicle has it, so
 that the message is taken at a tick fixed by simulated time.
 """
@@ -75,6 +78,22 @@ class TracksideHarness:
         )
         self.headers = {"Authorization": f"Bearer {answer.json()['access_token']}"}
         self._selected = False
+        self._store_line()
+
+    def _store_line(self) -> None:
+        """Import the run's line (admin, audited); the same version again changes nothing."""
+        line = self.ctx.node.track_map.line
+        document = line.model_dump_json(round_trip=True)
+        answer = self.rest.post(
+            "/api/v1/lines",
+            content=document,
+            headers={**self.headers, "Content-Type": "application/json"},
+        )
+        if answer.status_code not in (200, 201):
+            raise ScenarioRunError(
+                f"the trackside refused line {line.id!r} ({answer.status_code}): "
+                f"{answer.text[:300]}"
+            )
 
     def stop(self) -> None:
         if self.client is not None:
@@ -115,7 +134,7 @@ class TracksideHarness:
         before = ctx.node.inputs_received[2]
         body = {
             "id": restriction_id,
-            "line_id": ctx.spec.line,
+            "line_id": ctx.node.track_map.line.id,
             "start_m": fault.start_m,
             "end_m": fault.end_m,
             "speed_kmh": fault.speed_kmh,
@@ -146,7 +165,7 @@ class TracksideHarness:
             body = {
                 "start_m": here,
                 "end_of_authority_m": end_m,
-                "line_id": self.ctx.spec.line,
+                "line_id": self.ctx.node.track_map.line.id,
                 "danger_point_m": danger_point_m,
             }
             answer = self.rest.post(url, json=body, headers=self.headers)
@@ -183,7 +202,7 @@ class TracksideHarness:
         assert journey is not None
         body = {
             "id": journey.id,
-            "line_id": ctx.spec.line,
+            "line_id": ctx.node.track_map.line.id,
             "start_position_m": ctx.node.track_map.normalise(ctx.node.plant.position_m),
             "max_speed_mps": (
                 None if journey.max_speed_kmh is None else journey.max_speed_kmh * MPS_PER_KMH

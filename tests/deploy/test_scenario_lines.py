@@ -1,0 +1,288 @@
+"""A scenario's line (deploy/scenario/line_source.py): a built-in line, a line stored in the
+run's database, or a line file beside the scenario; bad ones are clear errors (``ato run`` exits
+2) and reading leaves nothing behind; and a whole journey in lockstep on a line of a file."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from sqlalchemy.orm import Session
+
+from deploy.scenario import ScenarioFileError, load_scenario, parse_scenario
+from deploy.scenario.console import run_from_cli
+from deploy.scenario.line_source import ScenarioLineError, resolve_line, stored_line
+from deploy.scenario.runner import RunOptions, run_scenario
+from trackdb import Line, LineBuilder, load_seed_line, storage
+from trackside.db import create_database_engine, migrate
+
+HEADER = """\
+name = "on-a-file"
+title = "A scenario on a line of its own"
+duration_s = 10.0
+"""
+
+JOURNEY = """
+end_when = "journey_ended and standstill"
+
+[vehicle]
+start_position_m = 100.0
+
+[journey]
+id = "valley-journey"
+max_speed_kmh = 60.0
+
+[[journey.timing_points]]
+id = "a"
+stopping_point_id = "a"
+arrival_time_s = 150.0
+departure_time_s = 170.0
+
+[[journey.timing_points]]
+id = "b"
+stopping_point_id = "b"
+arrival_time_s = 330.0
+departure_time_s = 350.0
+
+[[journey.timing_points]]
+id = "c"
+stopping_point_id = "c"
+arrival_time_s = 530.0
+end_of_journey = true
+
+[[actions]]
+do = "issue_ma"
+when = "not vc_eb"
+end_of_authority_m = 3150.0
+
+[[actions]]
+do = "send_journey"
+when = "etcs_mode == FS and standstill"
+
+[[actions]]
+do = "engage"
+when = "ato_state == RE"
+
+[[expect]]
+kpi = "stops.count"
+op = "=="
+value = 3
+
+[[expect]]
+kpi = "stops.stop_error_m"
+op = "abs<="
+value = 0.5
+
+[[expect]]
+kpi = "max_overspeed_kmh"
+op = "<="
+value = 0.0
+
+[[expect]]
+kpi = "etcs_sb_count"
+op = "=="
+value = 0
+
+[[expect]]
+kpi = "etcs_eb_count"
+op = "=="
+value = 0
+
+[[expect]]
+kpi = "vc_eb_count"
+op = "=="
+value = 0
+"""
+
+
+def valley_line(line_id: str = "valley-test") -> Line:
+    """A 3.2 km Level 2 line of our own: curves both ways, three line speeds, gradients, three
+    stopping points each with a precision-stop marker, balise groups as location references."""
+    builder = LineBuilder(
+        id=line_id, name="Valley test line", etcs_level=2, origin_lat_deg=46.0, origin_lon_deg=8.9
+    )
+    builder.straight(600, speed_kmh=60, gradient_permille=3.0)
+    builder.curve(500, 600.0, speed_kmh=60, gradient_permille=5.0)
+    builder.straight(700, speed_kmh=40, gradient_permille=-4.0)
+    builder.curve(400, -500.0, speed_kmh=40)
+    builder.straight(1000, speed_kmh=50, gradient_permille=2.0)
+    for stop_id, name, position in (("a", "Alpha", 800.0), ("b", "Bravo", 1800.0)):
+        builder.stopping_point(stop_id, name, position)
+        builder.stop_marker(f"{stop_id}-marker", position - 30.0)
+    builder.stopping_point("c", "Charlie", 3000.0)
+    builder.stop_marker("c-marker", 2970.0)
+    for index, position in enumerate(range(50, 3200, 500)):
+        builder.balise_group(200 + index, float(position))
+    return builder.build(geodetic_step_m=10.0)
+
+
+def _write(directory: Path, name: str, text: str) -> Path:
+    path = directory / name
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def _database(directory: Path, *lines: Line) -> str:
+    """A migrated SQLite database holding ``lines``; its URL."""
+    url = f"sqlite:///{directory / 'user.db'}"
+    engine = create_database_engine(url)
+    try:
+        migrate(engine)
+        with Session(engine) as session, session.begin():
+            for line in lines:
+                storage.import_line(session, line)
+    finally:
+        engine.dispose()
+    return url
+
+
+# -- the file's keys ---------------------------------------------------------------------------
+
+
+def test_a_line_file_is_taken_relative_to_the_scenario_file(tmp_path: Path) -> None:
+    line = valley_line()
+    _write(tmp_path / "lines", "valley.json", line.model_dump_json())
+    scenario = _write(
+        tmp_path / "scenarios", "s.toml", HEADER + 'line_file = "../lines/valley.json"\n'
+    )
+    spec = load_scenario(scenario)
+    assert spec.line is None
+    assert Path(spec.line_file or "") == tmp_path / "scenarios" / "../lines/valley.json"
+    resolved = resolve_line(spec)
+    assert resolved == line
+    assert resolved.version() == line.version()
+
+
+@pytest.mark.parametrize(
+    ("keys", "line", "reason"),
+    [
+        ('line = "bologna-ring"\nline_file = "x.json"\n', None, "one of the two"),
+        ("", None, "one of the two"),
+        (
+            'line = "bologna-ring"\n\n[line_import]\nformat = "railjson"\nfrom = "A"\nto = "B"\n'
+            'id = "x"\n',
+            None,
+            "[line_import] goes with line_file",
+        ),
+        (
+            'line_file = "x.json"\n\n[line_import]\nformat = "railml"\nfrom = "A"\nto = "B"\n'
+            'id = "x"\n',
+            7,
+            "line_import.format",
+        ),
+        (
+            'line_file = "x.json"\n\n[line_import]\nformat = "railjson"\nto = "B"\nid = "x"\n',
+            6,
+            "from",
+        ),
+        (
+            'line_file = "x.json"\n\n[line_import]\nformat = "railjson"\nfrom = "A"\nto = "B"\n'
+            'id = "not an id"\n',
+            10,
+            "line_import.id",
+        ),
+        ('line = "no spaces allowed"\n', 4, "line: String should match"),
+    ],
+)
+def test_the_line_keys_are_checked_with_their_line(
+    keys: str, line: int | None, reason: str
+) -> None:
+    with pytest.raises(ScenarioFileError) as raised:
+        parse_scenario(HEADER + keys, path="bad.toml")
+    assert reason in raised.value.reason, raised.value.reason
+    if line is not None:
+        assert raised.value.line == line, str(raised.value)
+
+
+def test_a_railjson_import_table_reads_like_the_command_line() -> None:
+    spec = parse_scenario(
+        HEADER + 'line_file = "infra.json"\n\n[line_import]\nformat = "railjson"\n'
+        'from = "West"\nto = "East"\nvia = ["Middle"]\nid = "west-east"\nname = "West to East"\n'
+    )
+    options = spec.line_import
+    assert options is not None
+    assert (options.from_op, options.to_op, options.via) == ("West", "East", ("Middle",))
+    assert (options.id, options.name) == ("west-east", "West to East")
+    # The scenario writes back with the file's own keys (generated scenarios round-trip).
+    assert spec.model_dump(mode="json")["line_import"]["from"] == "West"
+
+
+# -- stored lines ------------------------------------------------------------------------------
+
+
+def test_built_in_lines_come_first_then_the_runs_database(tmp_path: Path) -> None:
+    own = valley_line()
+    # A database that also holds another version of a built-in id: the shipped line is used.
+    url = _database(tmp_path, own, valley_line("bologna-ring"))
+    assert stored_line("bologna-ring", database_url=url) == load_seed_line("bologna-ring")
+    assert stored_line("valley-test", database_url=url) == own
+    spec = parse_scenario(HEADER + 'line = "valley-test"\n')
+    assert resolve_line(spec, database_url=url) == own
+
+
+def test_an_unknown_line_names_where_it_was_looked_for(tmp_path: Path) -> None:
+    url = _database(tmp_path)
+    with pytest.raises(ScenarioLineError, match="nor stored in sqlite:///"):
+        stored_line("valley-test", database_url=url)
+    with pytest.raises(ScenarioLineError, match="not a built-in line"):
+        stored_line("valley-test")
+    missing = tmp_path / "absent" / "none.db"
+    with pytest.raises(ScenarioLineError, match="no database at"):
+        stored_line("valley-test", database_url=f"sqlite:///{missing}")
+    assert not missing.parent.exists()
+
+
+# -- bad line files ----------------------------------------------------------------------------
+
+
+def _bad_files(directory: Path) -> dict[str, tuple[Path, str]]:
+    good = json.loads(valley_line().model_dump_json())
+    broken = dict(good, length_m=-5.0)
+    return {
+        "missing": (directory / "absent.json", "cannot read it"),
+        "not json": (_write(directory, "text.json", "not json at all"), "not a valid line"),
+        "schema": (_write(directory, "schema.json", json.dumps(broken)), "length_m"),
+        "a directory": (directory, "cannot read it"),
+    }
+
+
+@pytest.mark.parametrize("case", ["missing", "not json", "schema", "a directory"])
+def test_a_bad_line_file_is_a_scenario_error(tmp_path: Path, case: str) -> None:
+    path, reason = _bad_files(tmp_path / "lines")[case]
+    spec = parse_scenario(HEADER + f'line_file = "{path}"\n')
+    with pytest.raises(ScenarioLineError) as raised:
+        resolve_line(spec)
+    assert str(raised.value).startswith(f"line_file {path}: ")
+    assert reason in str(raised.value)
+
+
+def test_ato_run_exits_2_on_a_bad_line_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _write(tmp_path, "broken.json", '{"id": "broken"}')
+    scenario = _write(tmp_path, "s.toml", HEADER + 'line_file = "broken.json"\n')
+    status = run_from_cli(str(scenario), fast=True, speed=1.0, seed=None, report=None)
+    assert status == 2
+    error = " ".join(capsys.readouterr().err.split())  # as rich wrapped it
+    assert "cannot run on-a-file" in error
+    assert "broken.json" in error
+    assert "not a valid line" in error
+
+
+# -- a whole run -------------------------------------------------------------------------------
+
+
+@pytest.mark.e2e
+def test_a_journey_on_a_line_file_stops_within_half_a_metre(tmp_path: Path) -> None:
+    """The vehicle drives on the file's line, and the run's trackside plans on that same line
+    (it holds it in its database: the journey and the MA name it)."""
+    _write(tmp_path, "valley.json", valley_line().model_dump_json())
+    text = HEADER.replace("duration_s = 10.0", "duration_s = 900.0") + 'line_file = "valley.json"\n'
+    scenario = _write(tmp_path, "valley.toml", text + JOURNEY)
+    outcome = run_scenario(load_scenario(scenario), RunOptions(fast=True))
+    kpis = outcome.kpis
+    assert outcome.passed, [e for e in kpis.expectations if not e.ok]
+    assert [stop.name for stop in kpis.stops] == ["a", "b", "c"]
+    assert all(abs(stop.stop_error_m) <= 0.5 for stop in kpis.stops)
