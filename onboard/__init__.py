@@ -6,6 +6,18 @@ Abbreviations: ADF (autonomous driving function), SC (its supervisory controller
 (remote / autonomous driving).
 """
 
-from onboard._exceptions import AdfError, OnboardError
+from onboard._exceptions import (
+    AdfError,
+    OnboardError,
+    TrackDataCorruptError,
+    TrackDataError,
+    TrackDataUnavailableError,
+)
 
-__all__ = ["AdfError", "OnboardError"]
+__all__ = [
+    "AdfError",
+    "OnboardError",
+    "TrackDataCorruptError",
+    "TrackDataError",
+    "TrackDataUnavailableError",
+]

@@ -1,8 +1,9 @@
-"""What the trackside sent, taken on board at the ``commands`` tick: the line's version, journey
-profiles, the RBC's movement authorities and speed restrictions.
+"""What the trackside sent, taken on board at the ``commands`` tick: journey profiles, the RBC's
+movement authorities and speed restrictions (the line's version and track data are taken by
+``onboard.track_desk`` at the same tick, just before).
 
-Messages wait in the ports' queues (and the line version's and the RBC's current MA's answers
-in :class:`TracksideIntake`) until :meth:`TracksideIntake.take`, so that what they change
+Messages wait in the ports' queues (and the RBC's current MA's answers in
+:class:`TracksideIntake`) until :meth:`TracksideIntake.take`, so that what they change
 happens at a tick of simulated time. A journey profile, an MA or a TSR is taken only when it is
 fresh (the session held, a number not taken before: ``onboard.freshness``); an MA only when it
 is newer than the last one taken (``ma_id``). Each is handed to the onboard stack and logged as
@@ -37,16 +38,10 @@ class TracksideIntake:
         self.stack = stack
         self.client = client
         self._emit = emit
-        self._line_version: m.LineVersionReply | None = None
         self._current: list[m.MovementAuthorityReply] = []
         self._lock = threading.Lock()
         self.last_ma_id = 0
         """The ``ma_id`` of the last RBC message taken (0: none yet)."""
-
-    def on_line_version(self, reply: m.LineVersionReply) -> None:
-        """The trackside's line version, on Zenoh's thread: taken at the next :meth:`take`."""
-        with self._lock:
-            self._line_version = reply
 
     def on_current_authority(self, reply: m.MovementAuthorityReply) -> None:
         """The RBC's MA and TSRs in force (on Zenoh's thread, or the node's in lockstep): taken
@@ -57,9 +52,9 @@ class TracksideIntake:
             self._current.append(reply)
 
     def take(self, now_ns: int) -> None:
-        """The line version, the journey profiles, the MAs and the TSRs received, in that order
-        (the RBC's current ones first)."""
-        self._take_line_version(now_ns)
+        """The journey profiles, the MAs and the TSRs received, in that order (the RBC's
+        current ones first). The line's version and document are the track-data desk's
+        (``onboard.track_desk``), taken just before."""
         self._take_journeys(now_ns)
         with self._lock:
             current, self._current = self._current, []
@@ -74,20 +69,6 @@ class TracksideIntake:
         if refusal is not None:
             self._emit(_WARNING, "session.refused", f"{what} refused: {refusal.value}", now_ns)
         return refusal is None
-
-    def _take_line_version(self, now_ns: int) -> None:
-        with self._lock:
-            reply, self._line_version = self._line_version, None
-        if reply is None:
-            return
-        database = self.stack.track_database
-        matched_before = database.versions_match
-        database.record_trackside_version(reply)
-        if database.versions_match != matched_before or reply.version is None:
-            code = "track_data.match" if database.versions_match else "track_data.differ"
-            severity = _INFO if database.versions_match else _WARNING
-            text = f"trackside {reply.version or 'unknown'} onboard {database.onboard_version}"
-            self._emit(severity, code, text, now_ns)
 
     def _take_journeys(self, now_ns: int) -> None:
         now_s = now_ns / NS_PER_S

@@ -43,6 +43,11 @@ class JourneyKeeper:
         self.started = False
         self._planned_at_m = 0.0
 
+    def use_line(self, track_map: TrackMap) -> None:
+        """New track data: a journey accepted on the old ones is dropped, not started."""
+        self.track_map = track_map
+        self.plan, self.started = None, False
+
     def review(self, profile: m.JourneyProfile, position_m: float) -> tuple[bool, str | None]:
         """Accept a journey profile (reviewed against the track data, then planned from
         ``position_m`` [m]) or reject it with the reason."""

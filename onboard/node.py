@@ -53,11 +53,11 @@ from onboard.sfa.chain import MARKER_FIX_SIGMA_M, SensorFusionChain, SensorSetti
 from onboard.stack import ControlInputs, OnboardStack
 from onboard.status_barrier import StatusBarrier
 from onboard.status_report import status_report
+from onboard.track_desk import TrackDataDesk
 from onboard.vc import Datalog, DatalogRecorder, VcConfig
 from onboard.vc.installation import VcFaults, VcInstallation
 from onboard.vcu import vcu_parameters_for
 from onboard.vcu.drive import VcuDrive
-from protocol import ProtocolError
 from protocol import messages as m
 from trackdb import TrackMap
 
@@ -118,6 +118,8 @@ class OnboardSettings:
     vc_faults: VcFaults = VcFaults()
     vc_datalog: Path | None = None
     """Record the VC's notifications (JSON Lines) here; ``ato vc replay`` reads them."""
+    track_dir: Path | None = None
+    """Keep the track data received from the trackside here, verified (None: not kept)."""
 
 
 class OnboardNode:
@@ -140,6 +142,8 @@ class OnboardNode:
         self.settings = settings
         self.vehicle_id = settings.vehicle_id
         self.track_map = track_map
+        """The line the node was built on: the plant's world. The track data on board, which
+        the trackside may update, are ``stack.track_map`` (``onboard.track_desk``)."""
         self.clock = clock
         self.lockstep = isinstance(clock, SimClock)
         self.executive = Executive(clock)
@@ -195,6 +199,9 @@ class OnboardNode:
         self.intake = TracksideIntake(
             self.ports, self.stack, self.session_client, emit=self._emit_at
         )
+        self.track_data = TrackDataDesk(
+            self.ports, self.stack, self.sensor_fusion, self.settings.track_dir, emit=self._emit_at
+        )
         self.session_link = SessionLink(
             self.session_client,
             self.ports,
@@ -216,7 +223,7 @@ class OnboardNode:
             "vital_link": self._task_vital_link,
             "session": self._task_session,
             "status": self._task_status,
-            "track_data": self._task_track_data,
+            "track_data": self.track_data.ask,
         }
         for name, spec in TASK_TABLE.items():
             if name != "vital_link" or vital is not None:
@@ -242,14 +249,8 @@ class OnboardNode:
 
     # -- tasks (called by the executive) -------------------------------------------------------
 
-    def _task_track_data(self, now_ns: int) -> None:
-        """Ask the trackside which version of the line it holds (answered asynchronously)."""
-        try:
-            self.ports.ask_line_version(self.track_map.line.id, self.intake.on_line_version)
-        except ProtocolError as exc:
-            self.emit(m.EventSeverity.WARNING, "track_data.query_failed", str(exc), now_ns=now_ns)
-
     def _task_commands(self, now_ns: int) -> None:
+        self.track_data.step(now_ns)
         self.intake.take(now_ns)
         self._emit_all(self.commands.execute_queued(now_ns / NS_PER_S), now_ns)
         self._emit_all(self.stack.take_events(), now_ns)
@@ -383,6 +384,7 @@ class OnboardNode:
             acceleration_mps2=self.sensor_fusion.acceleration_mps2,
             traction_force_n=self.plant.drive.applied_force_n,
             target_speed_mps=self.target_speed_mps,
+            track_data_pending=self.track_data.pending_version,
         )
 
     def emit(

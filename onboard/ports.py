@@ -31,6 +31,7 @@ from protocol.registry import (
     EVENT,
     JOURNEY_PROFILE,
     JOURNEY_PROFILE_ACK,
+    LINE_DOCUMENT,
     LINE_VERSION,
     MOVEMENT_AUTHORITY,
     MOVEMENT_AUTHORITY_CURRENT,
@@ -41,7 +42,10 @@ from protocol.registry import (
     STATUS_ACK,
 )
 
-__all__ = ["SessionReply", "TracksidePorts"]
+__all__ = ["DOCUMENT_TIMEOUT_S", "SessionReply", "TracksidePorts"]
+
+DOCUMENT_TIMEOUT_S = 10.0
+"""How long one ask for a line document waits for its answer [s] (a long line is megabytes)."""
 
 SessionReply = m.SessionAccept | m.SessionReject
 """The trackside's answer to a handshake."""
@@ -178,6 +182,17 @@ class TracksidePorts:
         Raises :class:`~protocol.ProtocolError` if the query cannot be sent."""
         ask = m.LineVersionRequest(vehicle_id=self.vehicle_id, line_id=line_id)
         request_async(self.session, LINE_VERSION, ask, on_reply, line=line_id)
+
+    def ask_line_document(
+        self, line_id: str, on_reply: Callable[[m.LineDocumentReply], None]
+    ) -> None:
+        """Ask the trackside for the line's document (answered on Zenoh's thread).
+
+        Raises :class:`~protocol.ProtocolError` if the query cannot be sent."""
+        ask = m.LineDocumentRequest(vehicle_id=self.vehicle_id, line_id=line_id)
+        request_async(
+            self.session, LINE_DOCUMENT, ask, on_reply, timeout_s=DOCUMENT_TIMEOUT_S, line=line_id
+        )
 
     def ask_session(self, handshake: m.SessionRequest, *, timeout_s: float) -> SessionReply:
         """The handshake's answer, waited for (lockstep).

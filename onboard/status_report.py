@@ -19,6 +19,7 @@ def status_report(
     acceleration_mps2: float,
     traction_force_n: float,
     target_speed_mps: float | None,
+    track_data_pending: str | None = None,
 ) -> m.StatusReport:
     """The report numbered ``seq`` at ``now_s`` [s], from the stack's estimate and state, the
     sensor fusion's acceleration [m/s²], the drives' feedback [N] and the remote driver's target
@@ -59,4 +60,6 @@ def status_report(
         intervention_speed_mps=intervention if math.isfinite(intervention) else None,
         reference_speed_mps=driving.reference_speed_mps(now_s),
         train_hold=driving.hold,
+        track_data_version=stack.track_database.onboard_version,
+        track_data_pending=track_data_pending,
     )

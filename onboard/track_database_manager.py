@@ -31,6 +31,11 @@ class TrackDatabaseManager:
         self.trackside_version: str | None = None
         self.journey: m.JourneyProfile | None = None
 
+    def use_line(self, track_map: TrackMap) -> None:
+        """New track data of the same line: a journey accepted on the old ones is dropped."""
+        self.track_map = track_map
+        self.journey = None
+
     @property
     def onboard_version(self) -> str:
         return self.track_map.version

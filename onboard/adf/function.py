@@ -117,6 +117,13 @@ class DrivingFunction:
         """Whether the current plan stops before the EoA, short of the journey's next stop."""
         return self.replanner.eoa_stop_m is not None
 
+    def use_line(self, track_map: TrackMap) -> None:
+        """New track data of the same line, taken at standstill with ATO not engaged: the
+        journey planned on the old ones is dropped (its profile names their version)."""
+        self.track_map = self.replanner.track_map = track_map
+        self.progress.journey = None
+        self.autonomous = None
+
     # -- requests ------------------------------------------------------------------------------
 
     def remote(

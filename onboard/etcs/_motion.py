@@ -41,6 +41,13 @@ class MotionSupervisor:
         self._limits: dict[Target, TargetLimits] = {}
         self._release: tuple[tuple[float, float], float] | None = None
 
+    def use_line(self, track_map: TrackMap) -> None:
+        """New track data: the look-ahead and every target's curves are computed again."""
+        self.track_map = track_map
+        self.lookahead_m = self._lookahead_m()
+        self._limits.clear()
+        self._release = None
+
     def _lookahead_m(self) -> float:
         line, train, braking = self.track_map.line, self.braking.train, self.braking
         speed_mps = min(max(s.value for s in line.speed_limit_mps), train.max_speed_mps)

@@ -83,6 +83,11 @@ class ModeSupervision:
         self.emergency_brake_interventions = 0
         self.result: SupervisionResult = self.idle_result(EtcsMode.SB, 0.0)
 
+    def use_line(self, track_map: TrackMap) -> None:
+        """New track data of the same line: the targets are rebuilt on them."""
+        self.track_map = track_map
+        self.motion.use_line(track_map)
+
     @property
     def standstill(self) -> bool:
         """Whether the last speed given was a standstill."""

@@ -171,6 +171,11 @@ class EtcsOnboard:
         self.linking_events: list[LinkingEvent] = self._balises.linking_events
         self.output = self._output()
 
+    def use_line(self, track_map: TrackMap) -> None:
+        """New track data of the same line, taken at standstill: odometry, MA, mode kept."""
+        self.track_map = self._where.track_map = track_map
+        self._supervision.use_line(track_map)
+
     # -- state ----------------------------------------------------------------------------------
 
     @property

@@ -98,6 +98,13 @@ class SensorFusionChain:
         self.localisation.expect_near(start_position_m)
         self._start_position_m = start_position_m
 
+    def use_line(self, track_map: TrackMap) -> None:
+        """New track data of the same line: the estimate (chainage, speed, biases) is kept and
+        read on them from now on (gradients, GPS projection, the line's length)."""
+        self.track_map = track_map
+        self.listener.track_map = self.listener.filter.track_map = track_map
+        self.localisation.track_map = track_map
+
     def step(self, now_s: float, datagrams: Iterable[bytes]) -> None:
         """One 10 ms tick: send the sensors' datagrams, deliver, fuse, acknowledge."""
         link, listener, localisation = self.link, self.listener, self.localisation
