@@ -1,0 +1,190 @@
+"""The Track Database Manager's transfer: the switching rule, the transfer's steps, and the
+start-up fetch from a real trackside bridge over Zenoh."""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from onboard import TrackDataUnavailableError
+from onboard.track_store import TrackDataStore
+from onboard.track_transfer import TrackDataTransfer, fetch_line, switch_refusal
+from protocol import messages as m
+from trackdb import Line, load_seed_line
+from trackside.bridge import ZenohBridge
+
+RING = load_seed_line("bologna-ring")
+NEWER = RING.model_copy(update={"name": "Bologna ring, resurveyed"})
+
+
+def _reply(line: Line, *, document: str | None = None) -> m.LineDocumentReply:
+    text = line.model_dump_json(round_trip=True) if document is None else document
+    return m.LineDocumentReply(line_id=line.id, version=line.version(), document=text)
+
+
+# -- the switching rule ------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("speed_mps", "engaged", "refused"),
+    [
+        (0.0, False, None),
+        (0.009, False, None),
+        (-0.005, False, None),
+        (0.01, False, "moving"),
+        (8.3, False, "moving"),
+        (-0.5, False, "moving"),
+        (0.0, True, "ATO engaged"),
+        (8.3, True, "moving"),
+    ],
+)
+def test_switch_only_at_standstill_with_ato_not_engaged(
+    speed_mps: float, engaged: bool, refused: str | None
+) -> None:
+    refusal = switch_refusal(speed_mps=speed_mps, ato_engaged=engaged)
+    if refused is None:
+        assert refusal is None
+    else:
+        assert refusal is not None
+        assert refusal.startswith(refused)
+
+
+# -- the transfer ------------------------------------------------------------------------------
+
+
+def test_asks_only_when_the_trackside_holds_another_version() -> None:
+    transfer = TrackDataTransfer(RING.id)
+    assert not transfer.wanted(onboard_version=RING.version(), trackside_version=None)
+    assert not transfer.wanted(onboard_version=RING.version(), trackside_version=RING.version())
+    assert transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
+    transfer.asked(NEWER.version())
+    assert not transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
+    transfer.retry()
+    assert transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
+
+
+def test_a_wrong_sha256_is_refused_counted_and_reported(tmp_path: Path) -> None:
+    store = TrackDataStore(tmp_path)
+    transfer = TrackDataTransfer(RING.id, store)
+    tampered = NEWER.model_dump_json(round_trip=True).replace("resurveyed", "resurveyeD")
+    transfer.on_reply(_reply(NEWER, document=tampered))
+    events = transfer.take(RING.version())
+    assert [e.code for e in events] == ["track_data.refused"]
+    assert "SHA-256" in events[0].text
+    assert transfer.refused == 1
+    assert transfer.pending is None
+    assert store.load(RING.id) is None
+    # Asked again at the next period, as the versions still differ.
+    assert transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
+
+
+def test_a_verified_line_is_stored_and_waits_for_standstill(tmp_path: Path) -> None:
+    store = TrackDataStore(tmp_path)
+    transfer = TrackDataTransfer(RING.id, store)
+    transfer.on_reply(_reply(NEWER))
+    transfer.on_reply(_reply(NEWER))  # the answer to an ask repeated: taken once
+    events = transfer.take(RING.version())
+    assert [e.code for e in events] == ["track_data.received"]
+    assert transfer.pending is not None
+    assert transfer.pending.version == NEWER.version()
+    stored = store.load(RING.id)
+    assert stored is not None
+    assert stored.version() == NEWER.version()
+    assert not transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
+
+    deferrals = [transfer.due(speed_mps=5.0 + i, ato_engaged=False) for i in range(3)]
+    assert all(track_map is None for track_map, _ in deferrals)
+    reported = [event for _, event in deferrals if event is not None]
+    assert [e.code for e in reported] == ["track_data.switch_deferred"]  # once, not each tick
+    assert "moving" in reported[0].text
+
+    track_map, event = transfer.due(speed_mps=0.0, ato_engaged=True)
+    assert track_map is None
+    assert event is not None
+    assert "ATO engaged" in event.text
+
+    track_map, event = transfer.due(speed_mps=0.0, ato_engaged=False)
+    assert event is None
+    assert track_map is not None
+    assert track_map.version == NEWER.version()
+    assert transfer.pending is None
+    assert transfer.switches == 1
+
+
+def test_replies_about_other_lines_or_the_version_in_use_change_nothing() -> None:
+    transfer = TrackDataTransfer(RING.id)
+    transfer.on_reply(_reply(load_seed_line("milano-bologna")))
+    transfer.on_reply(_reply(RING))
+    assert transfer.take(RING.version()) == []
+    assert transfer.pending is None
+    transfer.on_reply(m.LineDocumentReply(line_id=RING.id))
+    assert [e.code for e in transfer.take(RING.version())] == ["track_data.unavailable"]
+
+
+# -- the start-up fetch over Zenoh -------------------------------------------------------------
+
+
+def _bridge(session: zenoh.Session, lines: dict[str, Line]) -> ZenohBridge:
+    def document(line_id: str) -> tuple[str, str] | None:
+        line = lines.get(line_id)
+        return None if line is None else (line.model_dump_json(round_trip=True), line.version())
+
+    return ZenohBridge(session, instance_id="ts-test", line_document=document)
+
+
+def test_fetch_with_no_copy_gets_verifies_and_stores_the_trackside_line(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session], tmp_path: Path
+) -> None:
+    trackside, onboard = zenoh_pair
+    store = TrackDataStore(tmp_path)
+    bridge = _bridge(trackside, {RING.id: NEWER})
+    try:
+        line = fetch_line(
+            onboard, vehicle_id="URV1", line_id=RING.id, store=store, stop=threading.Event()
+        )
+    finally:
+        bridge.close()
+    assert line.version() == NEWER.version()
+    stored = store.load(RING.id)
+    assert stored is not None
+    assert stored.version() == NEWER.version()
+
+
+def test_fetch_prefers_the_trackside_version_to_an_old_copy(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session], tmp_path: Path
+) -> None:
+    trackside, onboard = zenoh_pair
+    store = TrackDataStore(tmp_path)
+    store.save(RING.model_dump_json(round_trip=True), line_id=RING.id, version=RING.version())
+    bridge = _bridge(trackside, {RING.id: NEWER})
+    try:
+        line = fetch_line(
+            onboard, vehicle_id="URV1", line_id=RING.id, store=store, stop=threading.Event()
+        )
+    finally:
+        bridge.close()
+    assert line.version() == NEWER.version()
+
+
+def test_fetch_waits_while_no_trackside_holds_the_line(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session], tmp_path: Path
+) -> None:
+    trackside, onboard = zenoh_pair
+    bridge = _bridge(trackside, {})
+    stop = threading.Event()
+    threading.Timer(0.5, stop.set).start()
+    try:
+        with pytest.raises(TrackDataUnavailableError, match="no trackside gave it"):
+            fetch_line(
+                onboard,
+                vehicle_id="URV1",
+                line_id="my-own-line",
+                store=TrackDataStore(tmp_path),
+                stop=stop,
+                retry_s=0.1,
+            )
+    finally:
+        bridge.close()
