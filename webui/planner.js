@@ -1,7 +1,9 @@
-// Journey planner: pick a line, list timing points, validate and save through the journeys API,
-// and see the line's speed profile (static line speed, MRSP), the journey's cap and its stops.
+// Journey planner: pick any stored line, list timing points, validate and save through the
+// journeys API; see the line's map (its geodetic polyline, stopping points and the start), its
+// speed and gradient profiles (static line speed, MRSP), the journey's cap and its stops.
 import { api, element, errorText, fixed, kmh } from "./api.js";
 import { draw, line } from "./charts.js";
+import { LineMap } from "./map.js";
 
 const $ = (selector) => document.querySelector(selector);
 const KINDS = ["stopping", "passing", "skip"];
@@ -10,6 +12,8 @@ export class PlannerView {
   constructor() {
     this.lines = [];
     this.line = null;
+    this.map = new LineMap($("#planner-map"));
+    $("#planner-start").addEventListener("change", () => this.drawProfile());
     $("#planner-line").addEventListener("change", () => this.pickLine($("#planner-line").value));
     $("#planner-add-tp").addEventListener("click", () => this.addTimingPoint());
     $("#planner-validate").addEventListener("click", () => this.validate());
@@ -34,13 +38,17 @@ export class PlannerView {
   hide() {}
 
   async pickLine(lineId) {
+    // Only the line picked last is drawn: an earlier pick's answers may come after it.
+    this.picked = lineId;
     const [document_, profile] = await Promise.all([
       api(`/lines/${encodeURIComponent(lineId)}`),
       api(`/lines/${encodeURIComponent(lineId)}/profile`),
     ]);
+    if (this.picked !== lineId) return;
     if (!document_.ok) { this.report(false, errorText(document_)); return; }
     this.line = document_.data;
     this.profile = profile.ok ? profile.data : null;
+    this.map.setLine(this.line);
     for (const row of $("#planner-tps tbody").children) this.fillStops(row.querySelector("[data-tp=stop]"));
     this.drawProfile();
   }
@@ -159,6 +167,7 @@ export class PlannerView {
     traces.push({ type: "scatter", mode: "markers+text", name: "stopping points", x: stops.map((s) => s.position_m),
       y: stops.map(() => 0), text: stops.map((s) => s.name), textposition: "top center", marker: { color: "#1565c0", size: 9 } });
     const start = Number($("#planner-start").value);
+    this.map.setStart(start);
     traces.push({ type: "scatter", mode: "markers", name: "start", x: [start], y: [0], marker: { color: "#c62828", symbol: "triangle-right", size: 12 } });
     draw($("#planner-chart"), traces, {
       xaxis: { title: { text: "chainage [m]" } },
