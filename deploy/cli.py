@@ -150,7 +150,9 @@ def trackside(
 def onboard(
     vehicle: Annotated[str, typer.Option("--vehicle", help="Vehicle id, e.g. URV1.")],
     zenoh: ZenohOption = DEFAULT_ROUTER_ENDPOINT,
-    line: Annotated[str, typer.Option("--line", help="Line id.")] = "bologna-ring",
+    line: Annotated[
+        str, typer.Option("--line", help="Line id: any line the trackside holds.")
+    ] = "bologna-ring",
     speed: Annotated[float, typer.Option("--speed", help="Simulated s per wall s.")] = 1.0,
     fidelity: Annotated[
         str, typer.Option("--fidelity", help="Plant: point_mass or bogie (VCU + 10-DOF bogie).")
@@ -175,10 +177,18 @@ def onboard(
     no_vc_datalog: Annotated[
         bool, typer.Option("--no-vc-datalog", help="Do not record the VC's datalog.")
     ] = False,
+    track_dir: Annotated[
+        Path | None,
+        typer.Option(
+            "--track-dir",
+            help="Where the track data received from the trackside are kept, verified. "
+            "Default: .ato/track/VEHICLE.",
+        ),
+    ] = None,
     pki: PkiOption = None,
     verbose: bool = False,
 ) -> None:
-    """Run one ATO-OB process."""
+    """Run one ATO-OB process on a line the trackside holds (fetched if there is no copy)."""
     from deploy.processes import run_onboard, stop_on_signals
 
     _logging(verbose)
@@ -200,13 +210,16 @@ def onboard(
             fidelity=fidelity,  # type: ignore[arg-type]
             vc_replicas=vc_replicas,
             vc_datalog=None if no_vc_datalog else datalog,
+            track_dir=track_dir or Path(".ato/track") / vehicle,
         )
 
 
 @app.command()
 def up(
     vehicles: Annotated[int, typer.Option("--vehicles", min=1, max=100)] = 1,
-    line: Annotated[str, typer.Option("--line", help="Line id.")] = "bologna-ring",
+    line: Annotated[
+        str, typer.Option("--line", help="Line id: built in, or imported into the database.")
+    ] = "bologna-ring",
     port: Annotated[int, typer.Option(help="Trackside HTTP port (0: a free one).")] = 8000,
     router_port: Annotated[int, typer.Option(help="Router TCP port (0: a free one).")] = 7447,
     speed: Annotated[float, typer.Option(help="Simulated s per wall s.")] = 1.0,
@@ -255,13 +268,20 @@ def demo(
     data_dir: Annotated[Path, typer.Option(help="Where the demo keeps its database.")] = Path(
         ".ato"
     ),
+    line: Annotated[
+        str,
+        typer.Option(
+            "--line", help="Line id: a built-in line or one imported into the demo's database."
+        ),
+    ] = "bologna-ring",
     verbose: bool = False,
 ) -> None:
-    """Router, trackside and URV1 on bologna-ring, with the console on http://127.0.0.1:PORT/."""
+    """Router, trackside and URV1 on bologna-ring (or --line), with the console on
+    http://127.0.0.1:PORT/."""
     from deploy.demo import run_demo
 
     _logging(verbose)
-    run_demo(port=port, data_dir=data_dir)
+    run_demo(port=port, data_dir=data_dir, line_id=line)
 
 
 @app.command()
