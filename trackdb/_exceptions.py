@@ -7,6 +7,8 @@
     │                                           ``problems`` lists every one with its location
     ├── LineNotFoundError (LookupError)         no stored line of that id, or not that version
     ├── NoGeodeticPolylineError (LookupError)   a geodetic query on a line without a polyline
+    ├── RailJsonError (ValueError)              a RailJSON document that cannot become a line;
+    │                                           ``json_path`` names the place, ``reason`` why
     └── LineConflictError                       the database refused a write that raced with
                                                 another import of the same line (roll back, retry)
 
@@ -21,6 +23,7 @@ __all__ = [
     "LineNotFoundError",
     "LineValidationError",
     "NoGeodeticPolylineError",
+    "RailJsonError",
     "TrackDataError",
 ]
 
@@ -57,3 +60,13 @@ class LineConflictError(TrackDataError):
 
 class NoGeodeticPolylineError(TrackDataError, LookupError):
     """A geodetic query on a line that has no geodetic polyline."""
+
+
+class RailJsonError(TrackDataError, ValueError):
+    """A RailJSON document that cannot become a line: ``json_path`` names the place in the
+    document (``$.track_sections[12].length``), ``reason`` says what is wrong there."""
+
+    def __init__(self, json_path: str, reason: str) -> None:
+        super().__init__(f"{json_path}: {reason}")
+        self.json_path = json_path
+        self.reason = reason
