@@ -13,6 +13,7 @@ import typer
 
 from deploy.cli_pki import pki_app
 from deploy.cli_sfa import sfa_app
+from deploy.cli_trackdb import trackdb_app
 from protocol import DEFAULT_ROUTER_ENDPOINT, TlsFiles, ZenohSettings
 from protocol.router import run_router
 
@@ -28,7 +29,6 @@ app = typer.Typer(
 )
 bench_app = typer.Typer(help="Benchmarks that print numbers.", no_args_is_help=True)
 app.add_typer(bench_app, name="bench")
-trackdb_app = typer.Typer(help="Track data in and out of the database.", no_args_is_help=True)
 app.add_typer(trackdb_app, name="trackdb")
 vc_app = typer.Typer(help="Vital Control tools.", no_args_is_help=True)
 app.add_typer(vc_app, name="vc")
@@ -598,73 +598,3 @@ def audit_verify(database: DatabaseOption = None) -> None:
         typer.echo(problem, err=True)
     typer.echo(f"audit log TAMPERED: {len(report.problems)} break(s) in {report.entries} entries")
     raise typer.Exit(code=1)
-
-
-@trackdb_app.command("import")
-def trackdb_import(
-    file: Annotated[
-        Path, typer.Argument(help="A line document (JSON).", exists=True, dir_okay=False)
-    ],
-    database: DatabaseOption = None,
-) -> None:
-    """Validate and import a line; prints its id and version. Invalid: every problem, exit 2."""
-    from trackdb import LineValidationError
-    from trackdb.storage import import_line
-
-    try:
-        with _database_session(database) as session:
-            line = import_line(session, file.read_bytes())
-    except LineValidationError as exc:
-        typer.echo(
-            f"{file}: line {exc.line_id!r} rejected, {len(exc.problems)} problem(s):", err=True
-        )
-        for problem in exc.problems:
-            typer.echo(problem, err=True)
-        raise typer.Exit(code=2) from exc
-    typer.echo(f"{line.id} {line.version()}")
-
-
-@trackdb_app.command("export")
-def trackdb_export(
-    line: Annotated[str, typer.Argument(help="Line id.")],
-    database: DatabaseOption = None,
-    output: Annotated[
-        Path | None, typer.Option("--output", "-o", help="Write to this file, not stdout.")
-    ] = None,
-    version: Annotated[
-        str | None, typer.Option("--version", help="A stored version; the current by default.")
-    ] = None,
-) -> None:
-    """Print a line's canonical JSON (its SHA-256 is the line's version)."""
-    from trackdb import LineNotFoundError
-    from trackdb.storage import export_line
-
-    try:
-        with _database_session(database) as session:
-            document = export_line(session, line, version)
-    except LineNotFoundError as exc:
-        typer.echo(str(exc), err=True)
-        raise typer.Exit(code=1) from exc
-    if output is None:
-        typer.echo(document)
-    else:
-        output.write_text(document, encoding="utf-8")
-
-
-@trackdb_app.command("list")
-def trackdb_list(database: DatabaseOption = None) -> None:
-    """List the stored lines, tab-separated: id, current version, length in metres, name."""
-    from trackdb.storage import list_lines
-
-    with _database_session(database) as session:
-        summaries = list_lines(session)
-    for summary in summaries:
-        typer.echo(f"{summary.id}\t{summary.version}\t{summary.length_m:.1f}\t{summary.name}")
-
-
-@trackdb_app.command("schema")
-def trackdb_schema() -> None:
-    """Print the JSON Schema of a line document (as in trackdb/line.schema.json)."""
-    from trackdb import line_json_schema
-
-    typer.echo(line_json_schema(), nl=False)

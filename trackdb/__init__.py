@@ -15,6 +15,7 @@ from trackdb._exceptions import (
     LineNotFoundError,
     LineValidationError,
     NoGeodeticPolylineError,
+    RailJsonError,
     TrackDataError,
 )
 from trackdb._geometry import GeodeticPolyline, GpsProjection
@@ -46,6 +47,7 @@ __all__ = [
     "LineValidationError",
     "NoGeodeticPolylineError",
     "ProfileSection",
+    "RailJsonError",
     "SpeedSection",
     "StopMarker",
     "StoppingPoint",
