@@ -21,11 +21,12 @@ from pathlib import Path
 
 from onboard.events import StackEvent
 from onboard.ports import TracksidePorts
+from onboard.runtime.clock import NS_PER_S
 from onboard.session_link import Emit
 from onboard.sfa.chain import SensorFusionChain
 from onboard.stack import OnboardStack
 from onboard.track_store import TrackDataStore
-from onboard.track_transfer import TrackDataTransfer
+from onboard.track_transfer import STANDSTILL_MPS, TrackDataTransfer
 from protocol import ProtocolError
 from protocol import messages as m
 from trackdb import TrackMap
@@ -93,7 +94,7 @@ class TrackDataDesk:
     def step(self, now_ns: int) -> None:
         """At the ``commands`` tick: the trackside's version and the documents received, the
         ask for the line if needed, the switch if due, each reported."""
-        for event in [*self._take_version(), *self._take_documents()]:
+        for event in [*self._take_version(), *self._take_documents(now_ns / NS_PER_S)]:
             self._emit(event.severity, event.code, event.text, now_ns)
 
     def _take_version(self) -> list[StackEvent]:
@@ -112,7 +113,7 @@ class TrackDataDesk:
         text = f"trackside {reply.version or 'unknown'} onboard {database.onboard_version}"
         return [StackEvent(severity, code, text)]
 
-    def _take_documents(self) -> list[StackEvent]:
+    def _take_documents(self, now_s: float) -> list[StackEvent]:
         database = self.stack.track_database
         events = self.transfer.take(database.onboard_version)
         onboard, trackside = database.onboard_version, database.trackside_version
@@ -123,8 +124,10 @@ class TrackDataDesk:
                 events.append(StackEvent(_WARNING, "track_data.query_failed", str(exc)))
             else:
                 self.transfer.asked(trackside or "")
+        stack = self.stack
+        standstill = abs(stack.speed_mps) < STANDSTILL_MPS and stack.etcs.standstill
         track_map, deferred = self.transfer.due(
-            speed_mps=self.stack.speed_mps, ato_engaged=self.stack.engaged
+            now_s, standstill=standstill, ato_engaged=stack.engaged
         )
         if deferred is not None:
             events.append(deferred)

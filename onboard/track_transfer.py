@@ -5,8 +5,8 @@ line differs from the trackside's, it asks the trackside for the line
 (``ato/ts/line/{line}/document``), checks the document's SHA-256 against the version announced
 (:func:`onboard.track_store.verified_line`), stores it (:class:`~onboard.track_store.
 TrackDataStore`, when the process keeps copies) and holds it as the *pending* track data until
-the switch is allowed (:func:`switch_refusal`: at standstill, ATO not engaged). A document that
-fails its check is refused, counted and reported; the track data in use stay.
+the switch is allowed (:func:`switch_refusal`: at standstill for a while, ATO not engaged). A
+document that fails its check is refused, counted and reported; the track data in use stay.
 
 :class:`TrackDataTransfer` holds that state and turns each step into events for the log; the
 node asks, hands it the replies at its ``commands`` tick, and switches its parts when
@@ -35,6 +35,7 @@ from trackdb import Line, TrackMap
 
 __all__ = [
     "FETCH_RETRY_S",
+    "STANDSTILL_HOLD_S",
     "STANDSTILL_MPS",
     "TrackDataTransfer",
     "fetch_line",
@@ -46,20 +47,29 @@ _INFO, _WARNING = m.EventSeverity.INFO, m.EventSeverity.WARNING
 
 STANDSTILL_MPS = 0.01
 """Below this estimated speed [m/s] the train is at standstill (the stack's own threshold)."""
+STANDSTILL_HOLD_S = 2.0
+"""How long the train must have stood still before the switch [s]. The fused estimate reaches
+zero a little before the train has stopped (a train braking to a stop was still creeping at
+5 cm/s when its estimate first read zero): both ETCS's odometry and the fused estimate must
+read standstill, and keep reading it this long."""
 FETCH_RETRY_S = 1.0
 """Wall time between two asks for the line at start-up [s]."""
 
 
-def switch_refusal(*, speed_mps: float, ato_engaged: bool) -> str | None:
-    """Why the onboard may not switch to new track data now (None: it may).
+def switch_refusal(*, standstill_for_s: float | None, ato_engaged: bool) -> str | None:
+    """Why the onboard may not switch to new track data now (None: it may), the train at
+    standstill for ``standstill_for_s`` [s] (None: moving).
 
-    The switch happens at standstill only: every part that reads the line then takes the new
-    one between two cycles with the train not moving, so no supervision, plan or estimate ever
-    spans two versions while the train runs. An engaged ATO drives a journey planned on the old
-    version: it is disengaged first (at the end of the journey, or by the operator).
+    The switch happens at standstill only (held :data:`STANDSTILL_HOLD_S`): every part that
+    reads the line then takes the new one between two cycles with the train not moving, so no
+    supervision, plan or estimate ever spans two versions while the train runs. An engaged ATO
+    drives a journey planned on the old version: it is disengaged first (at the end of the
+    journey, or by the operator).
     """
-    if abs(speed_mps) >= STANDSTILL_MPS:
-        return f"moving at {abs(speed_mps):.2f} m/s"
+    if standstill_for_s is None:
+        return "moving"
+    if standstill_for_s < STANDSTILL_HOLD_S:
+        return f"moving until {STANDSTILL_HOLD_S:g} s at standstill ({standstill_for_s:.1f} s)"
     if ato_engaged:
         return "ATO engaged on a journey planned on the track data in use"
     return None
@@ -90,6 +100,7 @@ class TrackDataTransfer:
         self._lock = threading.Lock()
         self._asked_for: str | None = None
         self._deferred_for: tuple[str, str] | None = None
+        self._standstill_since_s: float | None = None
 
     # -- asking ----------------------------------------------------------------------------------
 
@@ -163,14 +174,21 @@ class TrackDataTransfer:
     # -- switching -------------------------------------------------------------------------------
 
     def due(
-        self, *, speed_mps: float, ato_engaged: bool
+        self, now_s: float, *, standstill: bool, ato_engaged: bool
     ) -> tuple[TrackMap | None, StackEvent | None]:
-        """The pending track data if the switch is allowed now (then no longer pending), else
-        None; and the deferral to report (once per version and reason)."""
+        """The pending track data if the switch is allowed at ``now_s`` [s] (then no longer
+        pending), else None; and the deferral to report (once per version and reason).
+        ``standstill``: whether the train reads standstill now (called at every tick)."""
+        if not standstill:
+            self._standstill_since_s = None
+        elif self._standstill_since_s is None:
+            self._standstill_since_s = now_s
         pending = self.pending
         if pending is None:
             return None, None
-        refusal = switch_refusal(speed_mps=speed_mps, ato_engaged=ato_engaged)
+        since_s = self._standstill_since_s
+        held_s = None if since_s is None else now_s - since_s
+        refusal = switch_refusal(standstill_for_s=held_s, ato_engaged=ato_engaged)
         if refusal is None:
             self.pending, self._deferred_for = None, None
             self.switches += 1

@@ -11,7 +11,12 @@ import zenoh
 
 from onboard import TrackDataUnavailableError
 from onboard.track_store import TrackDataStore
-from onboard.track_transfer import TrackDataTransfer, fetch_line, switch_refusal
+from onboard.track_transfer import (
+    STANDSTILL_HOLD_S,
+    TrackDataTransfer,
+    fetch_line,
+    switch_refusal,
+)
 from protocol import messages as m
 from trackdb import Line, load_seed_line
 from trackside.bridge import ZenohBridge
@@ -29,22 +34,21 @@ def _reply(line: Line, *, document: str | None = None) -> m.LineDocumentReply:
 
 
 @pytest.mark.parametrize(
-    ("speed_mps", "engaged", "refused"),
+    ("standstill_for_s", "engaged", "refused"),
     [
-        (0.0, False, None),
-        (0.009, False, None),
-        (-0.005, False, None),
-        (0.01, False, "moving"),
-        (8.3, False, "moving"),
-        (-0.5, False, "moving"),
-        (0.0, True, "ATO engaged"),
-        (8.3, True, "moving"),
+        (STANDSTILL_HOLD_S, False, None),
+        (60.0, False, None),
+        (None, False, "moving"),
+        (0.0, False, "moving until"),
+        (STANDSTILL_HOLD_S - 0.05, False, "moving until"),
+        (60.0, True, "ATO engaged"),
+        (None, True, "moving"),
     ],
 )
-def test_switch_only_at_standstill_with_ato_not_engaged(
-    speed_mps: float, engaged: bool, refused: str | None
+def test_switch_only_at_standstill_held_with_ato_not_engaged(
+    standstill_for_s: float | None, engaged: bool, refused: str | None
 ) -> None:
-    refusal = switch_refusal(speed_mps=speed_mps, ato_engaged=engaged)
+    refusal = switch_refusal(standstill_for_s=standstill_for_s, ato_engaged=engaged)
     if refused is None:
         assert refusal is None
     else:
@@ -95,18 +99,25 @@ def test_a_verified_line_is_stored_and_waits_for_standstill(tmp_path: Path) -> N
     assert stored.version() == NEWER.version()
     assert not transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
 
-    deferrals = [transfer.due(speed_mps=5.0 + i, ato_engaged=False) for i in range(3)]
+    # Moving, then stopping: the switch waits until the standstill has lasted.
+    ticks_s = [0.05 * i for i in range(200)]
+    deferrals = [
+        transfer.due(t, standstill=t >= 3.0, ato_engaged=t >= 3.0) for t in ticks_s if t < 9.0
+    ]
     assert all(track_map is None for track_map, _ in deferrals)
     reported = [event for _, event in deferrals if event is not None]
-    assert [e.code for e in reported] == ["track_data.switch_deferred"]  # once, not each tick
+    # Once per kind of refusal, not at each tick.
+    assert [e.code for e in reported] == ["track_data.switch_deferred"] * 2
     assert "moving" in reported[0].text
+    assert "ATO engaged" in reported[1].text
+    # Moving again resets the standstill's clock.
+    assert transfer.due(9.0, standstill=False, ato_engaged=False)[0] is None
+    assert transfer.due(9.05, standstill=True, ato_engaged=False)[0] is None
+    assert (
+        transfer.due(9.05 + STANDSTILL_HOLD_S - 0.1, standstill=True, ato_engaged=False)[0] is None
+    )
 
-    track_map, event = transfer.due(speed_mps=0.0, ato_engaged=True)
-    assert track_map is None
-    assert event is not None
-    assert "ATO engaged" in event.text
-
-    track_map, event = transfer.due(speed_mps=0.0, ato_engaged=False)
+    track_map, event = transfer.due(9.05 + STANDSTILL_HOLD_S, standstill=True, ato_engaged=False)
     assert event is None
     assert track_map is not None
     assert track_map.version == NEWER.version()
