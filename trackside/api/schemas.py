@@ -116,6 +116,12 @@ class VehicleStatusPublic(BaseModel):
     intervention_speed_mps: float | None = None
     reference_speed_mps: float | None = None
     train_hold: bool = False
+    track_data_version: str | None = Field(
+        default=None, description="The track data the vehicle drives on (SHA-256 of the line)"
+    )
+    track_data_pending: str | None = Field(
+        default=None, description="A newer version received, waiting for standstill to switch"
+    )
     age_s: float | None
     rate_ok: bool
 
