@@ -424,8 +424,9 @@ def long_line(sections: int, section_m: float) -> RailJsonBuilder:
 
 
 def twin_tracks() -> RailJsonBuilder:
-    """``in`` → point switch → two parallel 500 m tracks ``twin-b``/``twin-a`` → point switch →
-    ``out``; operational points ``west`` on ``in`` and ``east`` on ``out``."""
+    """``in`` → point switch → two parallel 500 m tracks ``twin-b`` (80 km/h) and ``twin-a``
+    (40 km/h) → point switch → ``out``; operational points ``west`` on ``in``, ``middle`` on
+    both twins, ``b-platform`` on ``twin-b`` only, ``east`` on ``out``."""
     b = RailJsonBuilder(45.0, 8.0)
     track_in = b.track("in", Pose(), [straight(500)])
     twin_b = b.track("twin-b", track_in.end_pose, [straight(500)])
@@ -435,6 +436,9 @@ def twin_tracks() -> RailJsonBuilder:
     b.point_switch("sw-out", track_out.entry, twin_b.exit, twin_a.exit)
     b.operational_point("west", "West", [("in", 100)])
     b.operational_point("middle", "Middle", [("twin-b", 250), ("twin-a", 250)])
+    b.operational_point("b-platform", "B platform", [("twin-b", 300)])
+    b.speed_section("twin-a-40", 40, [("twin-a", 0, 500, "both")])
+    b.speed_section("twin-b-80", 80, [("twin-b", 0, 500, "both")])
     b.operational_point("east", "East", [("out", 100)])
     return b
 
