@@ -315,7 +315,7 @@ def test_inconsistent_ranges_exit_2(tmp_path: Path) -> None:
     ("content", "expected"),
     [
         (b"{not json", ": $: not JSON: "),
-        (b"[1, 2]", ": $: Input should be an object"),
+        (b"[1, 2]", ": $: a JSON object expected, not list"),
     ],
 )
 def test_a_malformed_file_exits_2(tmp_path: Path, content: bytes, expected: str) -> None:

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import json
 import re
 from collections import defaultdict
 from collections.abc import Sequence
+from typing import Any, get_args
 
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from trackdb._exceptions import RailJsonError
 from trackdb.railjson.graph import (
@@ -18,7 +20,7 @@ from trackdb.railjson.graph import (
     merged,
     reversed_pieces,
 )
-from trackdb.railjson.models import RailJsonInfra
+from trackdb.railjson.models import RailJsonInfra, compact_geometry
 from trackdb.railjson.places import (
     balise_groups,
     geodetic_polyline,
@@ -58,19 +60,44 @@ def read_infra(document: bytes | str) -> RailJsonInfra:
             f"({MAX_DOCUMENT_BYTES // 2**20} MiB)",
         )
     try:
-        infra = RailJsonInfra.model_validate_json(document)
-    except ValidationError as exc:
-        errors = exc.errors(include_url=False)
-        first = next((e for e in errors if e["loc"][:1] == ("version",)), errors[0])
-        if first["type"] == "json_invalid":
-            raise RailJsonError("$", f"not JSON: {first['msg']}") from None
-        raise RailJsonError(_json_path(first["loc"]), first["msg"]) from None
-    if not _VERSION.match(infra.version):
+        # Read with the standard parser, geometry compacted as it goes: a whole-document tree
+        # (pydantic's JSON mode builds one) takes several times the document's size.
+        tree = json.loads(document, object_hook=compact_geometry)
+    except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError
+        raise RailJsonError("$", f"not JSON: {exc}") from None
+    if not isinstance(tree, dict):
+        raise RailJsonError("$", f"a JSON object expected, not {type(tree).__name__}")
+    version = tree.get("version")
+    if not isinstance(version, str) or not _VERSION.match(version):
         raise RailJsonError(
             "$.version",
-            f"unsupported RailJSON version {infra.version!r}: this import reads versions 3.x",
+            f"unsupported RailJSON version {version!r}: this import reads versions 3.x",
         )
-    return infra
+    return _validated(tree)
+
+
+def _validated(tree: dict[str, Any]) -> RailJsonInfra:
+    """The model of the tree; each long list is validated item by item, each dict replaced by
+    its model as it goes, so that the tree and the models are never both whole in memory."""
+    try:
+        for name, field in RailJsonInfra.model_fields.items():
+            items = tree.get(name)
+            item_type = get_args(field.annotation)[0] if name != "version" else None
+            if isinstance(items, list) and isinstance(item_type, type):
+                _validate_items(name, items, item_type)
+        return RailJsonInfra.model_validate(tree)
+    except ValidationError as exc:
+        first = exc.errors(include_url=False)[0]
+        raise RailJsonError(_json_path(first["loc"]), first["msg"]) from None
+
+
+def _validate_items(name: str, items: list[Any], item_type: type[BaseModel]) -> None:
+    for index, item in enumerate(items):
+        try:
+            items[index] = item_type.model_validate(item)
+        except ValidationError as exc:
+            first = exc.errors(include_url=False)[0]
+            raise RailJsonError(_json_path((name, index, *first["loc"])), first["msg"]) from None
 
 
 def _json_path(location: Sequence[int | str]) -> str:

@@ -14,13 +14,16 @@ error names the exact place (``$.track_sections[3].slopes[1]``); the models chec
 
 from __future__ import annotations
 
+from array import array
+from collections.abc import Iterator
 from enum import StrEnum
-from typing import Annotated
+from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
 __all__ = [
     "ApplicableDirections",
+    "Coordinates",
     "ApplicableRange",
     "Curve",
     "Detector",
@@ -37,6 +40,7 @@ __all__ = [
     "TrackEndpoint",
     "TrackSection",
     "TrackSectionLink",
+    "compact_geometry",
 ]
 
 Offset = Annotated[float, Field(ge=0.0, allow_inf_nan=False)]
@@ -72,13 +76,57 @@ class Curve(_Model):
     end: Offset = Field(description="From BEGIN [m]")
 
 
+class Coordinates:
+    """A LineString's positions as (longitude, latitude) [deg], two floats each in one array:
+    the geometry of a large document in a fraction of the memory lists of floats take."""
+
+    __slots__ = ("_values",)
+
+    def __init__(self, values: array[float]) -> None:
+        self._values = values
+
+    def __len__(self) -> int:
+        return len(self._values) // 2
+
+    def __getitem__(self, index: int) -> tuple[float, float]:
+        if not -len(self) <= index < len(self):
+            raise IndexError(index)
+        index %= len(self)
+        return self._values[2 * index], self._values[2 * index + 1]
+
+    def __iter__(self) -> Iterator[tuple[float, float]]:
+        values = self._values
+        return zip(values[0::2], values[1::2], strict=True)
+
+
+def compact_geometry(node: dict[str, Any]) -> dict[str, Any]:
+    """``json.loads``'s object hook: a LineString's coordinates become :class:`Coordinates` as
+    the document is read, when each position is two or three numbers (else they stay as read,
+    and the model reports where they are wrong)."""
+    coordinates = node.get("coordinates")
+    if node.get("type") != "LineString" or not isinstance(coordinates, list):
+        return node
+    values: array[float] = array("d")
+    for position in coordinates:
+        if not isinstance(position, list) or not 2 <= len(position) <= 3:
+            return node
+        longitude, latitude = position[0], position[1]
+        if not all(type(x) in (float, int) for x in position):
+            return node
+        values.append(longitude)
+        values.append(latitude)
+    return node | {"coordinates": Coordinates(values)}
+
+
 class LineString(_Model):
     """GeoJSON LineString: positions (longitude, latitude[, altitude]) [deg, deg, m]."""
 
+    model_config = ConfigDict(arbitrary_types_allowed=True)
+
     type: str = "LineString"
-    coordinates: list[Annotated[tuple[float, ...], Field(min_length=2, max_length=3)]] = Field(
-        min_length=2
-    )
+    coordinates: (
+        Coordinates | list[Annotated[tuple[float, ...], Field(min_length=2, max_length=3)]]
+    ) = Field(min_length=2)
 
 
 class TrackSection(_Model):

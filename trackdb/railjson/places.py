@@ -19,6 +19,7 @@ the geodetic polyline.
 from __future__ import annotations
 
 import hashlib
+import itertools
 import math
 import re
 import unicodedata
@@ -151,7 +152,7 @@ def _piece_points(infra: RailJsonInfra, piece: Piece) -> list[tuple[float, float
     section = infra.track_sections[piece.track]
     if section.geo is None:
         return []
-    coordinates = section.geo.coordinates
+    coordinates = [(position[0], position[1]) for position in section.geo.coordinates]
     for number, position in enumerate(coordinates):
         if not (-180.0 <= position[0] <= 180.0 and -90.0 <= position[1] <= 90.0):
             raise RailJsonError(
@@ -159,7 +160,7 @@ def _piece_points(infra: RailJsonInfra, piece: Piece) -> list[tuple[float, float
                 f"({position[0]}, {position[1]}) is not a WGS 84 longitude and latitude",
             )
     along = [0.0]
-    for first, second in zip(coordinates, coordinates[1:], strict=False):
+    for first, second in itertools.pairwise(coordinates):
         along.append(along[-1] + _distance_m(first, second))
     scale = section.length / along[-1] if along[-1] > 0.0 else 0.0
     offsets = [d * scale for d in along]
