@@ -17,9 +17,7 @@ run cannot be made: ``ato run`` exits 2); nothing is written anywhere while reso
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
-from typing import Any
 
 from sqlalchemy import make_url
 from sqlalchemy.exc import SQLAlchemyError
@@ -27,7 +25,14 @@ from sqlalchemy.orm import Session
 
 from deploy.scenario.run_context import ScenarioRunError
 from deploy.scenario.schema import LineImportSpec, ScenarioSpec
-from trackdb import SEED_LINES, Line, LineNotFoundError, LineValidationError, load_seed_line
+from trackdb import (
+    SEED_LINES,
+    Line,
+    LineNotFoundError,
+    LineValidationError,
+    RailJsonError,
+    load_seed_line,
+)
 
 __all__ = [
     "MAX_LINE_FILE_BYTES",
@@ -149,19 +154,21 @@ def line_from_file(path: Path, line_import: LineImportSpec | None = None) -> Lin
 
 def _railjson_line(path: Path, document: bytes, options: LineImportSpec) -> Line:
     """A line built from a RailJSON infrastructure, as ``ato trackdb import`` builds it."""
+    from trackdb.railjson import line_from_railjson
+
     try:
-        railjson: Any = importlib.import_module("trackdb.railjson")
-    except ImportError as exc:  # pragma: no cover - shipped with issue 21
-        raise ScenarioLineError(f"line_file {path}: RailJSON import is not available") from exc
-    try:
-        line: Line = railjson.line_from_railjson(
+        return line_from_railjson(
             document,
             from_op=options.from_op,
             to_op=options.to_op,
             via=options.via,
             line_id=options.id,
             name=options.name,
+            default_speed_kmh=options.default_speed_kmh,
+            speed_tag=options.speed_tag,
         )
-    except (railjson.RailJsonError, LineValidationError) as exc:
+    except RailJsonError as exc:
         raise ScenarioLineError(f"line_file {path}: RailJSON: {exc}") from exc
-    return line
+    except LineValidationError as exc:
+        reason = "; ".join(exc.problems[:5])
+        raise ScenarioLineError(f"line_file {path}: RailJSON: not a valid line: {reason}") from exc

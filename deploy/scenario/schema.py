@@ -18,6 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from deploy.scenario.conditions import Condition, parse_condition
 from trackdb.journey import JourneyTimingPoint
+from trackdb.railjson import DEFAULT_LINE_SPEED_KMH
 
 __all__ = [
     "Action",
@@ -62,6 +63,12 @@ class LineImportSpec(_Model):
     id: LineId
     """The line's id."""
     name: str | None = Field(default=None, min_length=1, max_length=128)
+    default_speed_kmh: float = Field(
+        default=DEFAULT_LINE_SPEED_KMH, gt=0.0, le=540.0, allow_inf_nan=False
+    )
+    """The line speed where no speed section applies [km/h]."""
+    speed_tag: str | None = Field(default=None, min_length=1, max_length=255)
+    """Speed sections' limits for this tag where they have one (their default elsewhere)."""
 
 
 class VehicleSpec(_Model):

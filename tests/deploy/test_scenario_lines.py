@@ -10,12 +10,13 @@ from pathlib import Path
 import pytest
 from sqlalchemy.orm import Session
 
-from deploy.scenario import ScenarioFileError, load_scenario, parse_scenario
+from deploy.scenario import SCENARIO_DIR, ScenarioFileError, load_scenario, parse_scenario
 from deploy.scenario.console import run_from_cli
 from deploy.scenario.line_source import ScenarioLineError, resolve_line, stored_line
 from deploy.scenario.runner import RunOptions, run_scenario
 from tests.deploy.valley_line import valley_line
 from trackdb import Line, load_seed_line, storage
+from trackdb.railjson import line_from_railjson
 from trackside.db import create_database_engine, migrate
 
 HEADER = """\
@@ -251,7 +252,57 @@ def test_ato_run_exits_2_on_a_bad_line_file(
     assert "not a valid line" in error
 
 
-# -- a whole run -------------------------------------------------------------------------------
+# -- RailJSON ----------------------------------------------------------------------------------
+
+RAILJSON = SCENARIO_DIR.parent / "lines" / "junction-valley.railjson.json"
+
+
+def _railjson_scenario(to: str = "eastfield") -> str:
+    return HEADER + (
+        f'line_file = "{RAILJSON}"\n\n[line_import]\nformat = "railjson"\nfrom = "westbrook"\n'
+        f'to = "{to}"\nvia = ["millbridge", "valley-junction"]\nid = "junction-valley"\n'
+    )
+
+
+def test_the_library_railjson_scenario_builds_the_line_the_import_builds() -> None:
+    spec = load_scenario("railjson-junction-valley")
+    assert Path(spec.line_file or "").resolve() == RAILJSON.resolve()
+    line = resolve_line(spec)
+    expected = line_from_railjson(
+        RAILJSON.read_bytes(),
+        from_op="westbrook",
+        to_op="eastfield",
+        via=["millbridge", "valley-junction"],
+        line_id="junction-valley",
+        name="Junction Valley: Westbrook – Eastfield",
+    )
+    assert line.version() == expected.version()
+    stops = {point.id for point in line.stopping_points}
+    assert {
+        tp.stopping_point_id for tp in (spec.journey.timing_points if spec.journey else ())
+    } <= stops
+    assert spec.vehicle.start_position_m == pytest.approx(
+        next(p.position_m for p in line.stopping_points if p.id == "westbrook")
+    )
+
+
+def test_a_railjson_error_names_the_file_and_the_place_in_it() -> None:
+    with pytest.raises(ScenarioLineError) as raised:
+        resolve_line(parse_scenario(_railjson_scenario(to="nowhere")))
+    message = str(raised.value)
+    assert message.startswith(f"line_file {RAILJSON}: RailJSON: $.operational_points: ")
+    assert "'nowhere'" in message
+
+
+def test_a_document_that_is_not_railjson_is_a_scenario_error(tmp_path: Path) -> None:
+    _write(tmp_path, "infra.json", json.dumps({"version": "2.0.0"}))
+    text = _railjson_scenario().replace(str(RAILJSON), "infra.json")
+    scenario = _write(tmp_path, "s.toml", text)
+    with pytest.raises(ScenarioLineError, match=r"infra.json: RailJSON: \$"):
+        resolve_line(load_scenario(scenario))
+
+
+# -- whole runs -------------------------------------------------------------------------------
 
 
 @pytest.mark.e2e
@@ -266,3 +317,27 @@ def test_a_journey_on_a_line_file_stops_within_half_a_metre(tmp_path: Path) -> N
     assert outcome.passed, [e for e in kpis.expectations if not e.ok]
     assert [stop.name for stop in kpis.stops] == ["a", "b", "c"]
     assert all(abs(stop.stop_error_m) <= 0.5 for stop in kpis.stops)
+
+
+@pytest.mark.e2e
+def test_ato_run_on_the_railjson_line_stops_at_both_intermediate_stops(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 21's must-show: ``ato run railjson-junction-valley --fast`` on the line imported
+    from the RailJSON test infrastructure: two intermediate stops and the last, each within
+    0.5 m, no overspeed, no ETCS or VC intervention."""
+    status = run_from_cli(
+        "railjson-junction-valley", fast=True, speed=1.0, seed=None, report=tmp_path
+    )
+    kpis = json.loads((tmp_path / "kpis.json").read_text())
+    assert status == 0, [e for e in kpis["expectations"] if not e["ok"]]
+    assert kpis["passed"]
+    assert [stop["name"] for stop in kpis["stops"]] == [
+        "millbridge",
+        "valley-junction",
+        "eastfield",
+    ]
+    assert all(abs(stop["stop_error_m"]) <= 0.5 for stop in kpis["stops"])
+    assert kpis["max_overspeed_kmh"] <= 0.0
+    assert kpis["etcs_sb_count"] == kpis["etcs_eb_count"] == kpis["vc_eb_count"] == 0
+    assert "railjson-junction-valley: PASSED" in capsys.readouterr().out
