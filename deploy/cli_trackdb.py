@@ -74,6 +74,32 @@ def _session(database: str | None) -> Iterator[Session]:
         yield session
 
 
+FormatOption = Annotated[
+    ImportFormat, typer.Option("--format", help="line (ours) or railjson (OSRD, 3.x).")
+]
+FromOption = Annotated[
+    str | None, typer.Option("--from", help="RailJSON: the origin operational point.")
+]
+ToOption = Annotated[
+    str | None, typer.Option("--to", help="RailJSON: the destination operational point.")
+]
+ViaOption = Annotated[
+    list[str] | None,
+    typer.Option("--via", help="RailJSON: an operational point to pass, in order (repeatable)."),
+]
+IdOption = Annotated[str | None, typer.Option("--id", help="RailJSON: the line's id.")]
+NameOption = Annotated[
+    str | None, typer.Option("--name", help="RailJSON: its name (ORIGIN – DESTINATION).")
+]
+SpeedOption = Annotated[
+    float, typer.Option("--default-speed", help="RailJSON: km/h where no speed section applies.")
+]
+TagOption = Annotated[
+    str | None,
+    typer.Option("--speed-tag", help="RailJSON: use speed sections' limits for this tag."),
+]
+
+
 @trackdb_app.command("import")
 def trackdb_import(
     file: Annotated[
@@ -81,33 +107,14 @@ def trackdb_import(
         typer.Argument(help="A line document, or a RailJSON infrastructure.", dir_okay=False),
     ],
     database: DatabaseOption = None,
-    format: Annotated[
-        ImportFormat, typer.Option("--format", help="line (ours) or railjson (OSRD, 3.x).")
-    ] = ImportFormat.LINE,
-    from_op: Annotated[
-        str | None, typer.Option("--from", help="RailJSON: the origin operational point.")
-    ] = None,
-    to_op: Annotated[
-        str | None, typer.Option("--to", help="RailJSON: the destination operational point.")
-    ] = None,
-    via: Annotated[
-        list[str] | None,
-        typer.Option(
-            "--via", help="RailJSON: an operational point to pass, in order (repeatable)."
-        ),
-    ] = None,
-    line_id: Annotated[str | None, typer.Option("--id", help="RailJSON: the line's id.")] = None,
-    name: Annotated[
-        str | None, typer.Option("--name", help="RailJSON: its name (ORIGIN – DESTINATION).")
-    ] = None,
-    default_speed: Annotated[
-        float,
-        typer.Option("--default-speed", help="RailJSON: km/h where no speed section applies."),
-    ] = 60.0,
-    speed_tag: Annotated[
-        str | None,
-        typer.Option("--speed-tag", help="RailJSON: use speed sections' limits for this tag."),
-    ] = None,
+    format: FormatOption = ImportFormat.LINE,
+    from_op: FromOption = None,
+    to_op: ToOption = None,
+    via: ViaOption = None,
+    line_id: IdOption = None,
+    name: NameOption = None,
+    default_speed: SpeedOption = 60.0,
+    speed_tag: TagOption = None,
 ) -> None:
     """Validate and import a line; prints its id and version. Bad input: the problems, exit 2."""
     from trackdb import LineValidationError, RailJsonError
