@@ -353,3 +353,13 @@ def test_railjson_needs_from_to_and_id() -> None:
     )
     assert result.exit_code == 2
     assert "--format railjson needs --to, --id" in result.stderr
+
+
+@pytest.mark.parametrize("railjson", [False, True])
+def test_a_missing_file_exits_2(tmp_path: Path, railjson: bool) -> None:
+    options = [*JUNCTION_VALLEY_ARGS, "--id", "jv"] if railjson else []
+    missing = tmp_path / "missing.json"
+    result = runner.invoke(app, ["trackdb", "import", str(missing), *options])
+    assert result.exit_code == 2
+    assert result.stderr.startswith(f"{missing}: ")
+    assert "No such file" in result.stderr

@@ -173,3 +173,11 @@ def test_what_is_not_json_is_said_so(content: str) -> None:
         line_from_railjson(content, from_op="a", to_op="b", line_id="x")
     assert caught.value.json_path == "$"
     assert caught.value.reason.startswith("not JSON: ")
+
+
+def test_an_origin_that_is_the_destination_has_no_line() -> None:
+    error = refused(lambda _: None, to_op="westbrook")
+    assert (error.json_path, error.reason) == (
+        "$.operational_points[0]",
+        "the path from 'westbrook' to 'westbrook' has no length",
+    )

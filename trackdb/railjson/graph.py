@@ -203,7 +203,13 @@ def find_path(graph: TrackGraph, waypoints: Sequence[Waypoint]) -> TrackPath:
             + " via ".join(repr(w.op_id) for w in waypoints[:-1])
             + f" to {waypoints[-1].op_id!r} along the tracks and switches (without reversing)",
         )
-    return search.chosen_path(targets)
+    path = search.chosen_path(targets)
+    if not path.pieces:
+        raise RailJsonError(
+            waypoints[-1].json_path,
+            f"the path from {waypoints[0].op_id!r} to {waypoints[-1].op_id!r} has no length",
+        )
+    return path
 
 
 class _Search:
