@@ -23,7 +23,7 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 	touch $(VENV)/.installed $@
 
 demo: $(VENV)/.installed
-	$(BIN)/ato demo
+	$(BIN)/ato demo $(if $(LINE),--line $(LINE))
 
 lint: $(VENV)/.installed-test
 	$(BIN)/ruff check .

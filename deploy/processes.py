@@ -303,20 +303,37 @@ def run_onboard(
     fidelity: Fidelity = "point_mass",
     vc_replicas: int = 2,
     vc_datalog: Path | None = None,
+    track_dir: Path | None = None,
 ) -> None:
     """Run one vehicle's onboard in real time × ``speed_factor`` until ``stop`` is set: the VC
-    is two boards in 2-out-of-2 by default, recording its datalog at ``vc_datalog`` if given."""
+    is two boards in 2-out-of-2 by default, recording its datalog at ``vc_datalog`` if given.
+
+    No line is built into the onboard: it starts on its copy in ``track_dir`` if the trackside
+    holds no newer version, else on the trackside's line, fetched, verified and stored there;
+    with neither it waits for a trackside that holds the line (``onboard.track_transfer``).
+    The simulated vehicle's world is that line too."""
     # Imported here, not at the top: the supervisor above serves processes (the link proxy's
     # parent among them) that never run an onboard.
+    from onboard import TrackDataUnavailableError
     from onboard.node import OnboardNode, OnboardSettings
     from onboard.runtime import RealTimeClock
+    from onboard.track_store import TrackDataStore
+    from onboard.track_transfer import fetch_line
     from protocol import open_session
-    from trackdb import TrackMap, load_seed_line
+    from trackdb import TrackMap
 
-    track_map = TrackMap(load_seed_line(line_id))
     if vc_datalog is not None:
         vc_datalog.parent.mkdir(parents=True, exist_ok=True)
+    store = None if track_dir is None else TrackDataStore(track_dir)
     with open_session(zenoh) as session:
+        _log.info("onboard %s: getting line %s (copies in %s)", vehicle_id, line_id, track_dir)
+        try:
+            line = fetch_line(
+                session, vehicle_id=vehicle_id, line_id=line_id, store=store, stop=stop
+            )
+        except TrackDataUnavailableError as exc:
+            _log.warning("onboard %s stopped before it had its line: %s", vehicle_id, exc)
+            return
         node = OnboardNode(
             OnboardSettings(
                 vehicle_id=vehicle_id,
@@ -324,10 +341,11 @@ def run_onboard(
                 fidelity=fidelity,
                 vc_replicas=vc_replicas,
                 vc_datalog=vc_datalog,
+                track_dir=track_dir,
             ),
             session=session,
             clock=RealTimeClock(speed_factor),
-            track_map=track_map,
+            track_map=TrackMap(line),
         )
 
         def stop_when_asked() -> None:
@@ -336,7 +354,9 @@ def run_onboard(
 
         watcher = threading.Thread(target=stop_when_asked, daemon=True)
         watcher.start()
-        _log.info("onboard %s running on %s at ×%g", vehicle_id, line_id, speed_factor)
+        _log.info(
+            "onboard %s running on %s %s at ×%g", vehicle_id, line_id, line.version(), speed_factor
+        )
         try:
             node.run()
         finally:

@@ -1,5 +1,11 @@
 """``ato up --vehicles N``: a Zenoh router, the trackside and N onboard processes on one machine.
 
+``--line ID`` names any line the trackside's database holds: a built-in one (seeded at the
+trackside's start) or one imported beforehand with ``ato trackdb import FILE --database URL``;
+``ato up`` imports nothing itself, and refuses to start the onboards on a line the trackside
+lacks. Each onboard gets its line from the trackside over Zenoh and keeps a verified copy in
+``DATA_DIR/track/VEHICLE``.
+
 Each part is its own child process (``ato router``, ``ato trackside``, ``ato onboard``) with its
 own log file under ``DATA_DIR/logs/``. The start is checked step by step: the router's port
 accepts connections, the trackside answers ``/healthz``, then every vehicle shows as alive in
@@ -108,6 +114,8 @@ class Fleet:
     router_endpoint: str
     url: str
     admin: tuple[str, str]
+    database: str = ""
+    """The trackside's database URL."""
     parts: list[ChildProcess] = field(default_factory=list)
     _stop: threading.Event = field(default_factory=threading.Event)
 
@@ -124,7 +132,7 @@ class Fleet:
         if plan.simulated_operators:
             env["ATO_SIMULATED_OPERATORS"] = ",".join(plan.vehicle_ids())
         database = plan.database or f"sqlite:///{(plan.data_dir / 'trackside.db').resolve()}"
-        fleet = cls(plan, endpoint, f"http://{plan.host}:{port}", (user, password))
+        fleet = cls(plan, endpoint, f"http://{plan.host}:{port}", (user, password), database)
         fleet.parts.append(_router_part(plan, endpoint, security, logs / "router.log"))
         fleet.parts.append(
             _part(
@@ -159,6 +167,8 @@ class Fleet:
                         plan.line,
                         "--speed",
                         str(plan.speed),
+                        "--track-dir",
+                        str(plan.data_dir / "track" / vehicle),
                         "--fidelity",
                         plan.fidelity,
                         "--vc-datalog",
@@ -190,6 +200,7 @@ class Fleet:
             self._wait("router", router, self._router_listening, timeout_s)
             trackside.start()
             self._wait("trackside", trackside, self._trackside_healthy, timeout_s)
+            self._check_line()
             for part in onboards:
                 part.start()
             self._wait("vehicles", None, self._vehicles_alive, timeout_s)
@@ -222,6 +233,25 @@ class Fleet:
             return httpx.get(f"{self.url}/healthz", timeout=1.0).status_code == 200
         except httpx.HTTPError:
             return False
+
+    def _check_line(self) -> None:
+        """UpError unless the trackside holds the plan's line (the onboards get it there)."""
+        line = self.plan.line
+        try:
+            answer = httpx.get(
+                f"{self.url}/api/v1/lines/{line}/version",
+                timeout=5.0,
+                headers={"Authorization": f"Bearer {self.token()}"},
+            )
+        except httpx.HTTPError as exc:
+            raise UpError(f"could not ask the trackside for line {line}: {exc}") from exc
+        if answer.status_code == httpx.codes.NOT_FOUND:
+            raise UpError(
+                f"line {line} is not stored at the trackside: import it first "
+                f"(ato trackdb import FILE --database {self.database})"
+            )
+        if answer.status_code != httpx.codes.OK:
+            raise UpError(f"line {line}: the trackside answered {answer.status_code}")
 
     def token(self) -> str:
         user, password = self.admin

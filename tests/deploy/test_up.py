@@ -20,11 +20,13 @@ from typer.testing import CliRunner
 from deploy.cli import app
 from deploy.pki import Role, init_ca, issue
 from onboard.freshness import Refusal
+from onboard.track_store import TrackDataStore
 from onboard.vc.datalog import read_datalog
 from protocol import TlsFiles, TransportError, ZenohSettings, open_session, request
 from protocol import messages as m
 from protocol.registry import COMMAND
 from tests.conftest import wait_for
+from trackdb import Line, load_seed_line
 
 pytestmark = pytest.mark.e2e
 
@@ -274,3 +276,37 @@ def test_each_onboard_runs_a_two_board_vc_whose_datalog_replays(up: Up, tmp_path
         replay = CliRunner().invoke(app, ["vc", "replay", str(datalog)])
         assert replay.exit_code == 0, replay.output
         assert f"VC datalog {vehicle}.jsonl" in replay.output
+
+
+def _import_into(database: str, line: Line, tmp_path: Path) -> None:
+    """``ato trackdb import`` of ``line`` into ``database`` (made if it does not exist)."""
+    file = tmp_path / f"{line.id}.json"
+    file.write_text(line.model_dump_json(round_trip=True))
+    result = CliRunner().invoke(app, ["trackdb", "import", str(file), "--database", database])
+    assert result.exit_code == 0, result.output
+
+
+def test_up_runs_its_vehicles_on_a_line_imported_into_its_database(tmp_path: Path) -> None:
+    """Issue 21: ``ato up --line ID`` for a line of the user's own, imported beforehand; no
+    line is built into the onboards: each gets it from the trackside and keeps a copy."""
+    line = load_seed_line("bologna-ring").model_copy(update={"id": "my-ring", "name": "Mine"})
+    _import_into(f"sqlite:///{(tmp_path / 'trackside.db').resolve()}", line, tmp_path)
+    with _running(_start(tmp_path, "--line", "my-ring")) as up:
+        for vehicle in ("URV1", "URV2"):
+            status = _until(
+                up, vehicle, lambda s: s["track_data_version"] == line.version(), "its line"
+            )
+            assert status["line_id"] == "my-ring"
+            stored = TrackDataStore(tmp_path / "track" / vehicle).load("my-ring")
+            assert stored is not None
+            assert stored.version() == line.version()
+        up.process.send_signal(signal.SIGTERM)
+        assert up.process.wait(30.0) == 0
+
+
+def test_up_refuses_a_line_its_trackside_does_not_hold(tmp_path: Path) -> None:
+    process = _start(tmp_path, "--line", "nowhere")
+    output, _ = process.communicate(timeout=120.0)
+    assert process.returncode == 1, output
+    assert "line nowhere is not stored at the trackside" in output
+    assert "ato trackdb import" in output
