@@ -254,20 +254,13 @@ def _refused(source: Path, database: str, *options: str) -> str:
     return result.stderr.strip()
 
 
+def _between(origin: str, destination: str) -> list[str]:
+    return ["--format", "railjson", "--from", origin, "--to", destination, "--id", "jv"]
+
+
 def test_an_unknown_operational_point_exits_2(tmp_path: Path) -> None:
     database = f"sqlite:///{tmp_path / 'ato.db'}"
-    message = _refused(
-        JUNCTION_VALLEY,
-        database,
-        "--format",
-        "railjson",
-        "--from",
-        "westbrook",
-        "--to",
-        "nowhere",
-        "--id",
-        "jv",
-    )
+    message = _refused(JUNCTION_VALLEY, database, *_between("westbrook", "nowhere"))
     assert message == (
         f"{JUNCTION_VALLEY}: $.operational_points: no operational point 'nowhere' (given with --to)"
     )
@@ -276,18 +269,7 @@ def test_an_unknown_operational_point_exits_2(tmp_path: Path) -> None:
 def test_no_path_exits_2(tmp_path: Path) -> None:
     database = f"sqlite:///{tmp_path / 'ato.db'}"
     # Northgate's branch leaves the main line eastwards: from Eastfield only a reversal reaches it.
-    message = _refused(
-        JUNCTION_VALLEY,
-        database,
-        "--format",
-        "railjson",
-        "--from",
-        "eastfield",
-        "--to",
-        "northgate",
-        "--id",
-        "jv",
-    )
+    message = _refused(JUNCTION_VALLEY, database, *_between("eastfield", "northgate"))
     index = [op["id"] for op in junction_valley().build()["operational_points"]].index("northgate")
     assert f": $.operational_points[{index}]: no path from 'eastfield' to 'northgate'" in message
 
