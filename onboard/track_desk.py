@@ -117,13 +117,14 @@ class TrackDataDesk:
         database = self.stack.track_database
         events = self.transfer.take(database.onboard_version)
         onboard, trackside = database.onboard_version, database.trackside_version
-        if self.transfer.wanted(onboard_version=onboard, trackside_version=trackside):
+        wanted = self.transfer.wanted(onboard_version=onboard, trackside_version=trackside)
+        if wanted is not None:
             try:
                 self.ports.ask_line_document(database.line_id, self.transfer.on_reply)
             except ProtocolError as exc:
                 events.append(StackEvent(_WARNING, "track_data.query_failed", str(exc)))
             else:
-                self.transfer.asked(trackside or "")
+                self.transfer.asked(wanted)
         stack = self.stack
         standstill = abs(stack.speed_mps) < STANDSTILL_MPS and stack.etcs.standstill
         track_map, deferred = self.transfer.due(

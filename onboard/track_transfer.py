@@ -104,14 +104,14 @@ class TrackDataTransfer:
 
     # -- asking ----------------------------------------------------------------------------------
 
-    def wanted(self, *, onboard_version: str, trackside_version: str | None) -> bool:
-        """Whether to ask for the line now: the trackside holds another version, not pending
-        already, and not asked for since the last :meth:`retry`."""
+    def wanted(self, *, onboard_version: str, trackside_version: str | None) -> str | None:
+        """The version to ask the line for now (None: none): the trackside holds another
+        version, not pending already, and not asked for since the last :meth:`retry`."""
         if trackside_version is None or trackside_version == onboard_version:
-            return False
+            return None
         if self.pending is not None and self.pending.version == trackside_version:
-            return False
-        return self._asked_for != trackside_version
+            return None
+        return None if self._asked_for == trackside_version else trackside_version
 
     def asked(self, version: str) -> None:
         """An ask for ``version`` went out (not repeated until its answer or :meth:`retry`)."""

@@ -61,13 +61,14 @@ def test_switch_only_at_standstill_held_with_ato_not_engaged(
 
 def test_asks_only_when_the_trackside_holds_another_version() -> None:
     transfer = TrackDataTransfer(RING.id)
-    assert not transfer.wanted(onboard_version=RING.version(), trackside_version=None)
-    assert not transfer.wanted(onboard_version=RING.version(), trackside_version=RING.version())
-    assert transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
-    transfer.asked(NEWER.version())
-    assert not transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
+    newer = NEWER.version()
+    assert transfer.wanted(onboard_version=RING.version(), trackside_version=None) is None
+    assert transfer.wanted(onboard_version=RING.version(), trackside_version=RING.version()) is None
+    assert transfer.wanted(onboard_version=RING.version(), trackside_version=newer) == newer
+    transfer.asked(newer)
+    assert transfer.wanted(onboard_version=RING.version(), trackside_version=newer) is None
     transfer.retry()
-    assert transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
+    assert transfer.wanted(onboard_version=RING.version(), trackside_version=newer) == newer
 
 
 def test_a_wrong_sha256_is_refused_counted_and_reported(tmp_path: Path) -> None:
@@ -82,7 +83,8 @@ def test_a_wrong_sha256_is_refused_counted_and_reported(tmp_path: Path) -> None:
     assert transfer.pending is None
     assert store.load(RING.id) is None
     # Asked again at the next period, as the versions still differ.
-    assert transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
+    wanted = transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
+    assert wanted == NEWER.version()
 
 
 def test_a_verified_line_is_stored_and_waits_for_standstill(tmp_path: Path) -> None:
@@ -97,7 +99,8 @@ def test_a_verified_line_is_stored_and_waits_for_standstill(tmp_path: Path) -> N
     stored = store.load(RING.id)
     assert stored is not None
     assert stored.version() == NEWER.version()
-    assert not transfer.wanted(onboard_version=RING.version(), trackside_version=NEWER.version())
+    pending = NEWER.version()
+    assert transfer.wanted(onboard_version=RING.version(), trackside_version=pending) is None
 
     # Moving, then stopping: the switch waits until the standstill has lasted.
     ticks_s = [0.05 * i for i in range(200)]
