@@ -117,6 +117,9 @@ class TrackDataDesk:
         database = self.stack.track_database
         events = self.transfer.take(database.onboard_version)
         onboard, trackside = database.onboard_version, database.trackside_version
+        dropped = self.transfer.forget_stale(trackside)
+        if dropped is not None:
+            events.append(dropped)
         wanted = self.transfer.wanted(onboard_version=onboard, trackside_version=trackside)
         if wanted is not None:
             try:

@@ -113,6 +113,17 @@ class TrackDataTransfer:
             return None
         return None if self._asked_for == trackside_version else trackside_version
 
+    def forget_stale(self, trackside_version: str | None) -> StackEvent | None:
+        """Drop the pending track data if the trackside now holds another version (a newer
+        one is asked for; the one in use, if it went back): never switch to a version the
+        trackside no longer holds. What to report."""
+        pending = self.pending
+        if pending is None or trackside_version in (None, pending.version):
+            return None
+        self.pending = None
+        text = f"{pending.version} no longer the trackside's ({trackside_version}): not used"
+        return StackEvent(_WARNING, "track_data.pending_dropped", text)
+
     def asked(self, version: str) -> None:
         """An ask for ``version`` went out (not repeated until its answer or :meth:`retry`)."""
         self._asked_for = version

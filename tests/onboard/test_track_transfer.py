@@ -202,3 +202,17 @@ def test_fetch_waits_while_no_trackside_holds_the_line(
             )
     finally:
         bridge.close()
+
+
+def test_pending_data_the_trackside_no_longer_holds_are_never_switched_to() -> None:
+    transfer = TrackDataTransfer(RING.id)
+    transfer.on_reply(_reply(NEWER))
+    transfer.take(RING.version())
+    assert transfer.forget_stale(None) is None  # no answer: nothing known against it
+    assert transfer.forget_stale(NEWER.version()) is None
+    assert transfer.pending is not None
+    event = transfer.forget_stale(RING.version())  # the trackside went back
+    assert event is not None
+    assert event.code == "track_data.pending_dropped"
+    assert transfer.pending is None
+    assert transfer.due(0.0, standstill=True, ato_engaged=False) == (None, None)
