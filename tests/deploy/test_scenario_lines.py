@@ -11,7 +11,7 @@ import pytest
 from sqlalchemy.orm import Session
 
 from deploy.scenario import SCENARIO_DIR, ScenarioFileError, load_scenario, parse_scenario
-from deploy.scenario.console import run_from_cli
+from deploy.scenario.console import run_database_url, run_from_cli
 from deploy.scenario.line_source import ScenarioLineError, resolve_line, stored_line
 from deploy.scenario.runner import RunOptions, run_scenario
 from tests.deploy.valley_line import valley_line
@@ -213,6 +213,15 @@ def test_an_unknown_line_names_where_it_was_looked_for(tmp_path: Path) -> None:
     with pytest.raises(ScenarioLineError, match="no database at"):
         stored_line("valley-test", database_url=f"sqlite:///{missing}")
     assert not missing.parent.exists()
+
+
+def test_ato_run_reads_stored_lines_where_the_trackside_does(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.delenv("ATO_DATABASE_URL", raising=False)
+    assert run_database_url() == "sqlite:///ato.db"
+    monkeypatch.setenv("ATO_DATABASE_URL", "postgresql://ato@db/ato")
+    assert run_database_url() == "postgresql://ato@db/ato"
 
 
 # -- bad line files ----------------------------------------------------------------------------
