@@ -90,14 +90,17 @@ class Onboard:
     def command(self, body: m.CommandBody) -> m.CommandAck:
         return self.hands.command(body)
 
-    def while_running(self, action: Callable[[], Any]) -> Any:
-        """Do ``action`` (which waits for the vehicle) while the vehicle runs."""
-        result: list[Any] = []
-        worker = threading.Thread(target=lambda: result.append(action()), daemon=True)
-        worker.start()
-        while worker.is_alive():
-            self.hands.run(0.2)
-        return result[0]
+    def answer_while(self, ask: Callable[[], Any]) -> Any:
+        """``ask`` (a request the vehicle answers) made while the vehicle runs on a thread of
+        its own, stopped once the answer is in."""
+        answered = threading.Event()
+        runner = threading.Thread(target=lambda: self.run_until(answered.is_set, 120.0))
+        runner.start()
+        try:
+            return ask()
+        finally:
+            answered.set()
+            runner.join()
 
     def close(self) -> None:
         self._events.close()
@@ -227,7 +230,7 @@ def _drive_switch_and_plan(
     start_m = node.stack.track_map.normalise(node.plant.position_m)
     assert _journey(client, headers, start_m)["line_version"] == SECOND.version()
     assert client.post("/api/v1/vehicles/URV1/select", headers=headers).status_code == 200
-    response = onboard.while_running(
+    response = onboard.answer_while(
         lambda: client.post(
             "/api/v1/vehicles/URV1/journey-profile",
             json={"journey_id": "on-the-new-data"},

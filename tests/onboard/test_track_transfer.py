@@ -149,11 +149,18 @@ def _bridge(session: zenoh.Session, lines: dict[str, Line]) -> ZenohBridge:
     return ZenohBridge(session, instance_id="ts-test", line_document=document)
 
 
-def test_fetch_with_no_copy_gets_verifies_and_stores_the_trackside_line(
-    zenoh_pair: tuple[zenoh.Session, zenoh.Session], tmp_path: Path
+@pytest.mark.parametrize(
+    "copy",
+    [None, RING.model_dump_json(round_trip=True), "{truncated"],
+    ids=["no copy", "an old copy", "a corrupted copy"],
+)
+def test_fetch_gets_verifies_and_stores_the_trackside_line(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session], tmp_path: Path, copy: str | None
 ) -> None:
     trackside, onboard = zenoh_pair
     store = TrackDataStore(tmp_path)
+    if copy is not None:
+        store.path(RING.id).write_text(copy)
     bridge = _bridge(trackside, {RING.id: NEWER})
     try:
         line = fetch_line(
@@ -165,22 +172,6 @@ def test_fetch_with_no_copy_gets_verifies_and_stores_the_trackside_line(
     stored = store.load(RING.id)
     assert stored is not None
     assert stored.version() == NEWER.version()
-
-
-def test_fetch_prefers_the_trackside_version_to_an_old_copy(
-    zenoh_pair: tuple[zenoh.Session, zenoh.Session], tmp_path: Path
-) -> None:
-    trackside, onboard = zenoh_pair
-    store = TrackDataStore(tmp_path)
-    store.save(RING.model_dump_json(round_trip=True), line_id=RING.id, version=RING.version())
-    bridge = _bridge(trackside, {RING.id: NEWER})
-    try:
-        line = fetch_line(
-            onboard, vehicle_id="URV1", line_id=RING.id, store=store, stop=threading.Event()
-        )
-    finally:
-        bridge.close()
-    assert line.version() == NEWER.version()
 
 
 def test_fetch_waits_while_no_trackside_holds_the_line(
