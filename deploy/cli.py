@@ -46,6 +46,14 @@ PkiOption = Annotated[
         "this party's certificate. Without it the links are plain TCP: insecure, for debugging.",
     ),
 ]
+TrackDirOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--track-dir",
+        help="Where the track data received from the trackside are kept, verified. "
+        "Default: .ato/track/VEHICLE.",
+    ),
+]
 
 
 def _warn_insecure(part: str, pki: Path | None) -> None:
@@ -177,14 +185,7 @@ def onboard(
     no_vc_datalog: Annotated[
         bool, typer.Option("--no-vc-datalog", help="Do not record the VC's datalog.")
     ] = False,
-    track_dir: Annotated[
-        Path | None,
-        typer.Option(
-            "--track-dir",
-            help="Where the track data received from the trackside are kept, verified. "
-            "Default: .ato/track/VEHICLE.",
-        ),
-    ] = None,
+    track_dir: TrackDirOption = None,
     pki: PkiOption = None,
     verbose: bool = False,
 ) -> None:

@@ -29,8 +29,11 @@ from typing import IO, TYPE_CHECKING, Self
 from deploy._exceptions import DeployError
 
 if TYPE_CHECKING:
+    import zenoh
+
     from onboard.node import Fidelity
     from protocol import ZenohSettings
+    from trackdb import Line
 
 __all__ = [
     "ChildError",
@@ -293,6 +296,28 @@ def stop_on_signals(stop: threading.Event) -> Iterator[None]:
             signal.signal(sig, old)
 
 
+def _line_to_run_on(
+    session: zenoh.Session,
+    vehicle_id: str,
+    line_id: str,
+    track_dir: Path | None,
+    stop: threading.Event,
+) -> Line | None:
+    """The onboard's line: its copy, or the trackside's (``fetch_line``); None if ``stop`` came
+    first."""
+    from onboard import TrackDataUnavailableError
+    from onboard.track_store import TrackDataStore
+    from onboard.track_transfer import fetch_line
+
+    store = None if track_dir is None else TrackDataStore(track_dir)
+    _log.info("onboard %s: getting line %s (copies in %s)", vehicle_id, line_id, track_dir)
+    try:
+        return fetch_line(session, vehicle_id=vehicle_id, line_id=line_id, store=store, stop=stop)
+    except TrackDataUnavailableError as exc:
+        _log.warning("onboard %s stopped before it had its line: %s", vehicle_id, exc)
+        return None
+
+
 def run_onboard(
     vehicle_id: str,
     *,
@@ -314,25 +339,16 @@ def run_onboard(
     The simulated vehicle's world is that line too."""
     # Imported here, not at the top: the supervisor above serves processes (the link proxy's
     # parent among them) that never run an onboard.
-    from onboard import TrackDataUnavailableError
     from onboard.node import OnboardNode, OnboardSettings
     from onboard.runtime import RealTimeClock
-    from onboard.track_store import TrackDataStore
-    from onboard.track_transfer import fetch_line
     from protocol import open_session
     from trackdb import TrackMap
 
     if vc_datalog is not None:
         vc_datalog.parent.mkdir(parents=True, exist_ok=True)
-    store = None if track_dir is None else TrackDataStore(track_dir)
     with open_session(zenoh) as session:
-        _log.info("onboard %s: getting line %s (copies in %s)", vehicle_id, line_id, track_dir)
-        try:
-            line = fetch_line(
-                session, vehicle_id=vehicle_id, line_id=line_id, store=store, stop=stop
-            )
-        except TrackDataUnavailableError as exc:
-            _log.warning("onboard %s stopped before it had its line: %s", vehicle_id, exc)
+        line = _line_to_run_on(session, vehicle_id, line_id, track_dir, stop)
+        if line is None:
             return
         node = OnboardNode(
             OnboardSettings(
