@@ -19,6 +19,7 @@ import pytest
 import zenoh
 from fastapi.testclient import TestClient
 
+from deploy.processes import ChildProcess, ato_command
 from onboard.node import OnboardNode, OnboardSettings
 from onboard.runtime import SimClock
 from onboard.track_store import TrackDataStore
@@ -26,6 +27,7 @@ from onboard.track_transfer import fetch_line
 from protocol import TypedSubscriber, ZenohSettings, open_session
 from protocol import messages as m
 from protocol.registry import EVENT
+from tests.conftest import wait_for
 from tests.e2e.conftest import running_trackside
 from tests.operator import LockstepOperator
 from trackdb import Line, TrackMap, load_seed_line
@@ -241,3 +243,39 @@ def _drive_switch_and_plan(
     assert response.json()["accepted"] is True
     assert database.journey is not None
     assert database.journey.track_data_version == SECOND.version()
+
+
+def test_ato_onboard_waits_for_a_trackside_that_holds_its_line(
+    router_endpoint: str, tmp_path: Path
+) -> None:
+    """``ato onboard --line ID`` with no copy and no trackside yet: it waits, then runs on the
+    line once a trackside holds it, and keeps a verified copy."""
+    track_dir = tmp_path / "track"
+    args = ato_command(
+        "onboard",
+        *("--vehicle", "URV7", "--zenoh", router_endpoint, "--line", LINE_ID),
+        *("--track-dir", str(track_dir), "--no-vc-datalog", "--speed", "2"),
+    )
+    log = tmp_path / "onboard.log"
+    with ChildProcess(args, log_file=log) as onboard:
+        assert wait_for(lambda: "no answer from a trackside" in _text(log), 30.0), _text(log)
+        assert onboard.running
+        assert TrackDataStore(track_dir).load(LINE_ID) is None
+        with running_trackside(router_endpoint, tmp_path) as (client, headers):
+            _import(client, headers, FIRST)
+
+            def runs_on_the_line() -> bool:
+                vehicles = client.get("/api/v1/vehicles", headers=headers).json()
+                status = next((v["status"] for v in vehicles if v["id"] == "URV7"), None)
+                if not status:
+                    return False
+                return bool(status["track_data_version"] == FIRST.version())
+
+            assert wait_for(runs_on_the_line, 60.0), _text(log)
+        stored = TrackDataStore(track_dir).load(LINE_ID)
+        assert stored is not None
+        assert stored.version() == FIRST.version()
+
+
+def _text(path: Path) -> str:
+    return path.read_text() if path.exists() else ""
