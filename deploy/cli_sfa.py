@@ -1,7 +1,10 @@
 """``ato sfa ...``: the sensor-fusion listener alone, the emulator, and the offline mode.
 
-- ``ato sfa listen --input HOST:PORT --obcu HOST:PORT [--line LINE]`` (CONTRACT.md §1): the
-  listener on real sockets until a STOP packet (exit 0) or Ctrl-C.
+- ``ato sfa listen --input HOST:PORT --obcu HOST:PORT [--line LINE] [--track-dir DIR]``
+  (CONTRACT.md §1): the listener on real sockets until a STOP packet (exit 0) or Ctrl-C. With
+  ``--track-dir`` it reads the line from the onboard's verified copies (``ato onboard
+  --track-dir``, any line the trackside holds), as the onboard it belongs to does; without it,
+  from the built-in lines.
 - ``ato sfa emulate --to HOST:PORT``: the interface-modules emulator sending an emulated drive.
 - ``ato sfa record --out FILE``: an emulated drive in lockstep, its received datagrams with
   arrival times and the truth written to a recording (seed 002 §4.1.2).
@@ -39,13 +42,24 @@ def _address(text: str) -> tuple[str, int]:
         raise typer.BadParameter(str(exc)) from exc
 
 
-def _track_map(line: str) -> TrackMap:
+def _track_map(line: str, track_dir: Path | None = None) -> TrackMap:
+    """The built-in line ``line``, or the onboard's verified copy of it in ``track_dir``."""
+    from onboard import TrackDataError
+    from onboard.track_store import TrackDataStore
     from trackdb import TrackMap, load_seed_line
 
+    if track_dir is None:
+        try:
+            return TrackMap(load_seed_line(line))
+        except KeyError as exc:
+            raise typer.BadParameter(f"{exc.args[0]} (or give --track-dir)") from exc
     try:
-        return TrackMap(load_seed_line(line))
-    except KeyError as exc:
+        stored = TrackDataStore(track_dir).load(line)
+    except (TrackDataError, ValueError) as exc:
         raise typer.BadParameter(str(exc)) from exc
+    if stored is None:
+        raise typer.BadParameter(f"no copy of line {line!r} in {track_dir}")
+    return TrackMap(stored)
 
 
 @sfa_app.command()
@@ -53,13 +67,17 @@ def listen(
     input_address: Annotated[str, typer.Option("--input", help="HOST:PORT to receive INPUT on.")],
     obcu: Annotated[str, typer.Option("--obcu", help="HOST:PORT of the OBCU.")],
     line: LineOption = "bologna-ring",
+    track_dir: Annotated[
+        Path | None,
+        typer.Option("--track-dir", help="The onboard's track data (ato onboard --track-dir)."),
+    ] = None,
 ) -> None:
     """Run the sensor-fusion listener until STOP (exit 0)."""
     from deploy.processes import stop_on_signals
     from onboard.sfa import ListenerCore
     from onboard.sfa.sockets import ListenerRunner
 
-    core = ListenerCore(_track_map(line))
+    core = ListenerCore(_track_map(line, track_dir))
     stop = threading.Event()
     with (
         stop_on_signals(stop),
