@@ -354,6 +354,13 @@ ShrinkRunsOption = Annotated[
     int,
     typer.Option(min=0, help="--generate: runs allowed to shrink each invariant's first failure."),
 ]
+ResumeOption = Annotated[
+    bool,
+    typer.Option(
+        help="--generate: take back the results kept in --out of runs of the same scenario, "
+        "seed and code; run only the others."
+    ),
+]
 
 
 @app.command()
@@ -373,6 +380,7 @@ def campaign(
     space: SpaceOption = None,
     out: GeneratedOutOption = None,
     shrink_runs: ShrinkRunsOption = 12,
+    resume: ResumeOption = False,
 ) -> None:
     """Scenarios × seeds × variations in lockstep over worker processes; a summary table. Exit
     1 if a run crashed or ended unsafe (overspeed beyond the EBI, EoA passed, obstacle reached).
@@ -392,6 +400,7 @@ def campaign(
                 workers=workers,
                 shrink_runs=shrink_runs,
                 json_path=json_path,
+                resume=resume,
             )
         )
     raise typer.Exit(

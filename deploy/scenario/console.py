@@ -302,6 +302,7 @@ def generated_campaign_from_cli(
     workers: int,
     shrink_runs: int,
     json_path: Path | None,
+    resume: bool = False,
 ) -> int:
     """Generate, run, judge, shrink and print; 0 when no invariant is violated, 1 otherwise,
     2 when the space cannot be used."""
@@ -327,6 +328,7 @@ def generated_campaign_from_cli(
             shrink_runs=shrink_runs,
             on_result=finished,
             on_shrink=lambda text: bar.console.print(text, markup=False, highlight=False),
+            resume=resume,
         )
     summary = summarise_generated(campaign, seed=seed, space=space.name)
     _print_generated(summary)

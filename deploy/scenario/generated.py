@@ -22,6 +22,7 @@ from deploy.scenario.generate import Draw, draw, write_scenario
 from deploy.scenario.invariants import INVARIANTS, Violation, judge
 from deploy.scenario.kpi_model import Kpis, ServedStop
 from deploy.scenario.loader import load_scenario
+from deploy.scenario.run_store import RunStore, code_fingerprint
 from deploy.scenario.schema import InvariantName, ScenarioSpec
 from deploy.scenario.shrink import ShrinkResult, shrink
 from deploy.scenario.space import GeneratorSpace
@@ -76,8 +77,11 @@ def run_generated(
     shrink_runs: int = 12,
     on_result: Callable[[CellResult], None] | None = None,
     on_shrink: Callable[[str], None] | None = None,
+    resume: bool = False,
 ) -> GeneratedCampaign:
-    """Generate, run, judge and shrink; every file is written under ``out_dir``."""
+    """Generate, run, judge and shrink; every file is written under ``out_dir``, each run's
+    result too as it ends (``out_dir/results``); with ``resume``, the runs whose kept result
+    matches their scenario, seed and code are not made again (:mod:`deploy.scenario.run_store`)."""
     drawn: dict[str, Draw] = {}
     specs: dict[str, ScenarioSpec] = {}
     for index in range(count):
@@ -85,7 +89,13 @@ def run_generated(
         path = str(write_scenario(space, item, out_dir))
         drawn[path], specs[path] = item, load_scenario(path)
     cells = [Cell(path, spec.seed) for path, spec in specs.items()]
-    results = run_campaign(cells, workers=workers, on_result=on_result)
+    results = _run_kept(
+        cells,
+        RunStore(out_dir / "results", code_fingerprint()),
+        workers=workers,
+        resume=resume,
+        on_result=on_result,
+    )
     violations = {r.cell.scenario: _judged(specs[r.cell.scenario], r) for r in results}
     shrunk: dict[InvariantName, tuple[Path, ShrinkResult]] = {}
     for invariant in INVARIANTS:
@@ -107,6 +117,31 @@ def run_generated(
         target = write_scenario(space, result.draw, out_dir)
         shrunk[invariant] = (target, result)
     return GeneratedCampaign(results, specs, violations, shrunk)
+
+
+def _run_kept(
+    cells: Sequence[Cell],
+    store: RunStore,
+    *,
+    workers: int,
+    resume: bool,
+    on_result: Callable[[CellResult], None] | None,
+) -> list[CellResult]:
+    """The cells' results in their order: kept ones taken back (with ``resume``), the others
+    run, each kept as it ends."""
+    kept = {cell: store.load(cell) for cell in cells} if resume else {}
+    for result in kept.values():
+        if result is not None and on_result is not None:
+            on_result(result)
+
+    def finished(result: CellResult) -> None:
+        store.save(result)
+        if on_result is not None:
+            on_result(result)
+
+    missing = [cell for cell in cells if kept.get(cell) is None]
+    ran = iter(run_campaign(missing, workers=workers, on_result=finished))
+    return [kept.get(cell) or next(ran) for cell in cells]
 
 
 def _values(results: Sequence[CellResult], key: str) -> list[float]:

@@ -317,3 +317,13 @@ def test_five_generated_scenarios_keep_every_invariant(tmp_path: Path) -> None:
     assert len(list(out.glob("gen-2-*.toml"))) == 5
     assert summary["invariants"] == {}, result.output
     assert result.exit_code == 0
+    kept = {path.name: path.read_text() for path in (out / "results").glob("gen-2-*.json")}
+    assert len(kept) == 5
+    # Resumed: the kept results taken back, not run again (a new run would be written out with
+    # its own wall-clock times); the one without a result run.
+    (out / "results" / "gen-2-3.json").unlink()
+    resumed = CliRunner().invoke(app, [*arguments, "--resume"])
+    assert resumed.exit_code == 0, resumed.output
+    assert json.loads((tmp_path / "s.json").read_text())["runs"] == 5
+    again = {path.name: path.read_text() for path in (out / "results").glob("gen-2-*.json")}
+    assert [name for name in kept if again[name] != kept[name]] == ["gen-2-3.json"]
