@@ -34,6 +34,7 @@ __all__ = [
     "ScenarioSummary",
     "bench_run",
     "run_once",
+    "run_scenario_process",
     "summarise",
 ]
 
@@ -84,28 +85,53 @@ class ScenarioSummary:
         return self.factor_median >= self.target
 
 
-def run_once(scenario: str, *, seed: int | None = None, timeout_s: float = 3600.0) -> RunSample:
-    """Run ``ato run SCENARIO --fast`` in a new interpreter and read its ``kpis.json``."""
+def run_scenario_process(
+    scenario: str,
+    *,
+    seed: int | None = None,
+    timeout_s: float = 3600.0,
+    python: Path | None = None,
+    cwd: Path | None = None,
+    env: dict[str, str] | None = None,
+) -> tuple[int, str | None, str]:
+    """Run ``python -m deploy run SCENARIO --fast`` (the current interpreter by default) in
+    ``cwd`` with ``env``: (exit status, the text of its ``kpis.json`` or None, the last line
+    of its standard error when it wrote none)."""
     with tempfile.TemporaryDirectory(prefix="ato-bench-run-") as directory:
-        command = [sys.executable, "-m", "deploy", "run", scenario, "--fast", "--report", directory]
+        command = [str(python or sys.executable), "-m", "deploy", "run", scenario, "--fast"]
+        command += ["--report", directory]
         if seed is not None:
             command += ["--seed", str(seed)]
         try:
             finished = subprocess.run(
-                command, capture_output=True, text=True, timeout=timeout_s, check=False
+                command,
+                capture_output=True,
+                text=True,
+                timeout=timeout_s,
+                check=False,
+                cwd=cwd,
+                env=env,
             )
         except subprocess.TimeoutExpired:
-            return RunSample(scenario, -1, None, f"no end within {timeout_s:g} s")
+            return -1, None, f"no end within {timeout_s:g} s"
         path = Path(directory) / "kpis.json"
         if not path.is_file():
             lines = finished.stderr.strip().splitlines()
-            return RunSample(scenario, finished.returncode, None, lines[-1] if lines else "")
-        try:
-            kpis = Kpis.model_validate_json(path.read_text(encoding="utf-8"))
-        except ValidationError as exc:
-            reason = f"kpis.json does not match the model: {exc.errors()[0]['msg']}"
-            return RunSample(scenario, finished.returncode, None, reason)
-    return RunSample(scenario, finished.returncode, kpis)
+            return finished.returncode, None, lines[-1] if lines else ""
+        return finished.returncode, path.read_text(encoding="utf-8"), ""
+
+
+def run_once(scenario: str, *, seed: int | None = None, timeout_s: float = 3600.0) -> RunSample:
+    """Run ``ato run SCENARIO --fast`` in a new interpreter and read its ``kpis.json``."""
+    exit_code, text, error = run_scenario_process(scenario, seed=seed, timeout_s=timeout_s)
+    if text is None:
+        return RunSample(scenario, exit_code, None, error)
+    try:
+        kpis = Kpis.model_validate_json(text)
+    except ValidationError as exc:
+        reason = f"kpis.json does not match the model: {exc.errors()[0]['msg']}"
+        return RunSample(scenario, exit_code, None, reason)
+    return RunSample(scenario, exit_code, kpis)
 
 
 def summarise(scenario: str, samples: Sequence[RunSample]) -> ScenarioSummary:
