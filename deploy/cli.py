@@ -415,6 +415,27 @@ def campaign(
     )
 
 
+AgainstOption = Annotated[
+    str | None,
+    typer.Option(
+        "--against",
+        metavar="REF",
+        help="Also run a git ref (a temporary work tree with its own environment), interleaved "
+        "run by run with the current tree, and print both and the ratio tree/ref.",
+    ),
+]
+BenchJsonOption = Annotated[
+    Path | None, typer.Option("--json", help="Also write the numbers to this JSON file.")
+]
+
+
+def _bench_failed(exc: Exception) -> typer.Exit:
+    from rich.console import Console
+
+    Console(stderr=True).print(f"ato bench: {exc}", markup=False)
+    return typer.Exit(code=2)
+
+
 @bench_app.command("run")
 def bench_run(
     scenarios: Annotated[
@@ -423,15 +444,30 @@ def bench_run(
             help="Scenario names or files (default: bologna-ring and milano-bologna-low-soc)."
         ),
     ] = None,
-    runs: Annotated[int, typer.Option(min=1, help="Runs per scenario.")] = 5,
+    runs: Annotated[int, typer.Option(min=1, help="Runs per scenario (and side).")] = 5,
     seed: Annotated[int | None, typer.Option(help="Override the scenarios' seed.")] = None,
+    against: AgainstOption = None,
+    json_path: BenchJsonOption = None,
 ) -> None:
     """Whole-stack real-time factor in lockstep: `ato run --fast` again and again, median and
-    worst beside the target."""
+    worst beside the target; with --against REF, side by side with REF and kpis.json compared."""
+    from dataclasses import asdict
+
+    from deploy.bench.against import ReferenceTreeError, write_json
+    from deploy.bench.run_against import bench_run_against
     from deploy.bench.run_bench import DEFAULT_SCENARIOS
     from deploy.bench.run_bench import bench_run as run
 
-    run(scenarios or DEFAULT_SCENARIOS, runs=runs, seed=seed)
+    chosen = scenarios or list(DEFAULT_SCENARIOS)
+    if against is None:
+        summaries = run(chosen, runs=runs, seed=seed)
+        if json_path is not None:
+            write_json(json_path, {"scenarios": [asdict(s) for s in summaries]})
+        return
+    try:
+        bench_run_against(against, chosen, runs=runs, seed=seed, json_path=json_path)
+    except ReferenceTreeError as exc:
+        raise _bench_failed(exc) from exc
 
 
 @bench_app.command("trackdb")
