@@ -420,8 +420,9 @@ AgainstOption = Annotated[
     typer.Option(
         "--against",
         metavar="REF",
-        help="Also run a git ref (a temporary work tree with its own environment), interleaved "
-        "run by run with the current tree, and print both and the ratio tree/ref.",
+        help="Measure side by side with a git ref (a temporary work tree with its own "
+        "environment), interleaved run by run with the current tree: both sides' figures and "
+        "the ratio tree/ref.",
     ),
 ]
 BenchJsonOption = Annotated[
@@ -499,11 +500,38 @@ def bench_adf(
     plots: Annotated[
         Path | None, typer.Option("--plots", help="Write the RD → AD → RD figure here.")
     ] = None,
+    against: AgainstOption = None,
+    json_path: BenchJsonOption = None,
+    runs: Annotated[int, typer.Option(min=1, help="--against: laps per side.")] = 3,
+    solver: Annotated[
+        str, typer.Option(help="--against: the NMPC's solver (sqpmethod: ours; ipopt).")
+    ] = "sqpmethod",
+    duration_s: Annotated[
+        float | None,
+        typer.Option("--duration", min=1.0, help="--against: cut the lap to this many seconds."),
+    ] = None,
 ) -> None:
-    """Plan energies, the RD → AD → RD hand-over, NMPC solve times (ours against IPOPT)."""
-    from deploy.bench.adf_bench import bench_adf as run
+    """Plan energies, the RD → AD → RD hand-over, NMPC solve times (ours against IPOPT); with
+    --against REF, the NMPC's solve times and trajectory on the lap side by side with REF."""
+    from deploy.bench.against import ReferenceTreeError, write_json
 
-    run(plots_dir=plots)
+    if solver not in ("sqpmethod", "ipopt"):
+        raise typer.BadParameter("sqpmethod or ipopt", param_hint="--solver")
+    if against is None:
+        from deploy.bench.adf_bench import bench_adf as run
+
+        results = run(plots_dir=plots)
+        if json_path is not None:
+            write_json(json_path, {"laps": results})
+        return
+    from deploy.bench.adf_against import bench_adf_against
+
+    try:
+        bench_adf_against(
+            against, runs=runs, solver=solver, duration_s=duration_s, json_path=json_path
+        )
+    except ReferenceTreeError as exc:
+        raise _bench_failed(exc) from exc
 
 
 @bench_app.command("vc")
