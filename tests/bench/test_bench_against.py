@@ -18,6 +18,12 @@ from typing import Any
 import pytest
 from rich.console import Console
 
+from deploy.bench.adf_against import (
+    LapSample,
+    bench_adf_against,
+    compare_laps,
+    solve_time_figures,
+)
 from deploy.bench.against import (
     REPOSITORY_ROOT,
     ReferenceTreeError,
@@ -302,3 +308,74 @@ def test_bench_run_against_head_runs_both_sides_with_identical_kpis(tmp_path: Pa
     assert figures["kpi_differences"] == []
     assert figures["ratio_median"] == pytest.approx(comparison.ratio_median)
     assert not any(Path(tree).parent.name.startswith("ato-bench-ref-") for tree in _work_trees())
+
+
+# --- ato bench adf --against ------------------------------------------------------------------
+
+
+def _lap(speeds: list[float], arrivals: dict[str, list[float]], **changes: Any) -> dict[str, Any]:
+    lap = {
+        "solve_times_s": [0.001, 0.002, 0.004],
+        "solves": 3,
+        "failures": 0,
+        "speeds_mps": speeds,
+        "arrivals": arrivals,
+        "traction_energy_j": 1000.0,
+        "wall_s": 1.0,
+    }
+    return lap | changes
+
+
+def test_laps_compare_speed_stops_and_solves_against_the_tolerance() -> None:
+    tree = _lap([0.0, 1.0, 2.0], {"0": [300.0, 0.1], "1": [550.0, -0.2]})
+    same = compare_laps(0, tree, _lap([0.0, 1.0, 2.0], {"0": [300.0, 0.1], "1": [550.0, -0.2]}))
+    assert (same.speed_mps, same.stop_position_m, same.arrival_s) == (0.0, 0.0, 0.0)
+    assert same.within_tolerance
+    close = compare_laps(
+        0, tree, _lap([0.0, 1.005, 2.0], {"0": [300.0, 0.105], "1": [550.0, -0.2]})
+    )
+    assert close.speed_mps == pytest.approx(0.005)
+    assert close.stop_position_m == pytest.approx(0.005)
+    assert close.within_tolerance
+    moved = compare_laps(1, tree, _lap([0.0, 1.0, 2.02], {"0": [301.0, 0.1], "1": [550.0, -0.2]}))
+    assert moved.speed_mps == pytest.approx(0.02)
+    assert moved.arrival_s == pytest.approx(1.0)
+    assert not moved.within_tolerance
+    short = compare_laps(
+        0, tree, _lap([0.0, 1.0], {"0": [300.0, 0.1]}, solves=2, traction_energy_j=900.0)
+    )
+    assert short.traction_energy_j == pytest.approx(100.0)
+    assert len(short.notes) == 3  # control steps, stops made, solves
+    assert not short.within_tolerance
+
+
+def test_solve_times_are_pooled_over_the_laps_that_ran() -> None:
+    laps = [
+        LapSample("tree", 0, _lap([0.0], {})),
+        LapSample("tree", 1, None, "boom"),
+        LapSample("tree", 2, _lap([0.0], {}, solve_times_s=[0.003], solves=1, failures=1)),
+    ]
+    figures = solve_time_figures(laps)
+    assert (figures.laps, figures.solves, figures.failures) == (2, 4, 1)
+    assert figures.median_ms == pytest.approx(2.5)
+    assert figures.max_ms == pytest.approx(4.0)
+    assert solve_time_figures([LapSample("ref", 0, None, "boom")]).median_ms is None
+
+
+@pytest.mark.scenario
+def test_bench_adf_against_head_drives_both_sides_to_the_same_trajectory(tmp_path: Path) -> None:
+    console = Console(record=True, width=200)
+    numbers = tmp_path / "adf.json"
+    comparison = bench_adf_against(
+        "HEAD", runs=1, duration_s=20.0, json_path=numbers, console=console, timeout_s=600.0
+    )
+    output = console.export_text()
+    assert "field-test lap tree 1/1: 100 solves" in output
+    assert "field-test lap ref 1/1: 100 solves" in output
+    assert comparison.tree.solves == comparison.ref.solves == 100
+    [trajectory] = comparison.trajectories
+    assert trajectory.speed_mps == 0.0  # the same code, deterministic: bit for bit
+    assert trajectory.notes == []
+    written = json.loads(numbers.read_text())
+    assert written["solve_times_ms"]["ref"]["solves"] == 100
+    assert written["trajectories"][0]["within_tolerance"] is True
