@@ -201,7 +201,10 @@ def _table(comparisons: Sequence[ScenarioComparison], tree: Side, ref: Side) -> 
         "tree/ref p99",
         "kpis.json",
     ):
-        table.add_column(column, justify="left" if column == "scenario" else "right")
+        if column == "scenario":
+            table.add_column(column, overflow="fold")
+        else:
+            table.add_column(column, justify="right")
     for c in comparisons:
         if not c.compared_rounds:
             verdict = "not compared"

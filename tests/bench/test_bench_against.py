@@ -17,6 +17,7 @@ from typing import Any
 
 import pytest
 from rich.console import Console
+from typer.testing import CliRunner
 
 from deploy.bench.adf_against import (
     LapSample,
@@ -37,6 +38,7 @@ from deploy.bench.against import (
 )
 from deploy.bench.kpi_diff import ABSENT, WALL_CLOCK_FIELDS, KpiDifference, kpi_differences
 from deploy.bench.run_against import SideSample, bench_run_against, compare_scenario
+from deploy.cli import app
 from deploy.scenario.kpi_model import Kpis
 from tests.deploy.kpi_samples import sample_kpis
 
@@ -168,6 +170,16 @@ def test_the_numbers_are_written_as_strict_json(tmp_path: Path) -> None:
     write_json(path, {"median": float("nan"), "runs": [1.0, float("inf")]})
     assert json.loads(path.read_text()) == {"median": None, "runs": [1.0, None]}
     assert [p.name for p in tmp_path.iterdir()] == ["bench.json"]
+
+
+@pytest.mark.e2e
+@pytest.mark.parametrize("command", [["run", "vc-B"], ["adf"]])
+def test_the_commands_refuse_a_ref_that_names_no_commit(command: list[str]) -> None:
+    before = _work_trees()
+    result = CliRunner().invoke(app, ["bench", *command, "--against", "no-such-ref-24"])
+    assert result.exit_code == 2
+    assert "'no-such-ref-24' names no commit" in result.output
+    assert _work_trees() == before
 
 
 # --- the ref's work tree and interpreter, on this repository --------------------------------
