@@ -35,6 +35,7 @@ from deploy.bench.against import (
     SideLabel,
     interleaved,
     reference_side,
+    tree_over_ref,
     tree_side,
     write_json,
 )
@@ -132,18 +133,9 @@ class AdfComparison:
     tree: SolveTimeFigures
     ref: SolveTimeFigures
     trajectories: list[TrajectoryDifference]
-
-    @staticmethod
-    def _ratio(tree: float | None, ref: float | None) -> float | None:
-        return None if tree is None or not ref else tree / ref
-
-    @property
-    def ratio_median(self) -> float | None:
-        return self._ratio(self.tree.median_ms, self.ref.median_ms)
-
-    @property
-    def ratio_p99(self) -> float | None:
-        return self._ratio(self.tree.p99_ms, self.ref.p99_ms)
+    ratio_median: float | None
+    """Median solve time, tree over ref: below 1, the tree is faster."""
+    ratio_p99: float | None
 
 
 def run_lap(
@@ -310,14 +302,17 @@ def bench_adf_against(
             state = f"{len(sample.lap['solve_times_s'])} solves" if sample.lap else sample.error
             console.print(f"field-test lap {label} {round_index + 1}/{runs}: {state}", markup=False)
             samples[label].append(sample)
+    figures = {side: solve_time_figures(samples[side]) for side in SIDES}
     comparison = AdfComparison(
-        tree=solve_time_figures(samples["tree"]),
-        ref=solve_time_figures(samples["ref"]),
+        tree=figures["tree"],
+        ref=figures["ref"],
         trajectories=[
             compare_laps(t.round, t.lap, r.lap)
             for t, r in zip(samples["tree"], samples["ref"], strict=True)
             if t.lap is not None and r.lap is not None
         ],
+        ratio_median=tree_over_ref(figures["tree"].median_ms, figures["ref"].median_ms),
+        ratio_p99=tree_over_ref(figures["tree"].p99_ms, figures["ref"].p99_ms),
     )
     title = f"NMPC solve times on the field-test lap ({solver}, {plan_kind} plan), side by side"
     console.print(_table(comparison, tree, reference, title))

@@ -58,6 +58,7 @@ __all__ = [
     "reference_work_tree",
     "resolve_commit",
     "runtime_dependencies",
+    "tree_over_ref",
     "tree_side",
     "write_json",
 ]
@@ -97,6 +98,11 @@ def interleaved(items: Sequence[str], runs: int) -> list[tuple[int, str, SideLab
     """The order of the runs: ``(round, item, side)``, rounds outermost, the tree before the
     ref for each item (tree, ref, tree, ref, ...)."""
     return [(index, item, side) for index in range(runs) for item in items for side in SIDES]
+
+
+def tree_over_ref(tree: float | None, ref: float | None) -> float | None:
+    """The ratio of a figure, tree over ref; None when either is missing or the ref's is 0."""
+    return None if tree is None or not ref else tree / ref
 
 
 def _git(repository: Path, *arguments: str) -> str:

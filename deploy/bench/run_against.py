@@ -30,6 +30,7 @@ from deploy.bench.against import (
     SideLabel,
     interleaved,
     reference_side,
+    tree_over_ref,
     tree_side,
     write_json,
 )
@@ -100,17 +101,9 @@ class ScenarioComparison:
     """Rounds in which both sides wrote ``kpis.json``."""
     differences: list[tuple[KpiDifference, list[str]]]
     """Each distinct tree/ref difference, with the rounds (``run 2``) it was found in."""
-
-    def _ratio(self, tree: float | None, ref: float | None) -> float | None:
-        return None if tree is None or not ref else tree / ref
-
-    @property
-    def ratio_median(self) -> float | None:
-        return self._ratio(self.tree.median, self.ref.median)
-
-    @property
-    def ratio_p99(self) -> float | None:
-        return self._ratio(self.tree.p99, self.ref.p99)
+    ratio_median: float | None
+    """Median factor, tree over ref: above 1, the tree is faster."""
+    ratio_p99: float | None
 
 
 def run_side_once(
@@ -167,12 +160,15 @@ def compare_scenario(scenario: str, samples: Sequence[SideSample]) -> ScenarioCo
         ref = next((s for s in by_side["ref"] if s.round == tree.round), None)
         if tree.kpis is not None and ref is not None and ref.kpis is not None:
             pairs.append((f"run {tree.round + 1}", kpi_differences(tree.kpis, ref.kpis)))
+    figures = {side: side_factors(by_side[side]) for side in SIDES}
     return ScenarioComparison(
         scenario=scenario,
-        tree=side_factors(by_side["tree"]),
-        ref=side_factors(by_side["ref"]),
+        tree=figures["tree"],
+        ref=figures["ref"],
         compared_rounds=len(pairs),
         differences=grouped_differences(pairs),
+        ratio_median=tree_over_ref(figures["tree"].median, figures["ref"].median),
+        ratio_p99=tree_over_ref(figures["tree"].p99, figures["ref"].p99),
     )
 
 
