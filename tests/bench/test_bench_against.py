@@ -391,3 +391,13 @@ def test_bench_adf_against_head_drives_both_sides_to_the_same_trajectory(tmp_pat
     written = json.loads(numbers.read_text())
     assert written["solve_times_ms"]["ref"]["solves"] == 100
     assert written["trajectories"][0]["within_tolerance"] is True
+
+
+@pytest.mark.scenario
+def test_bench_run_without_a_ref_writes_its_numbers_too(tmp_path: Path) -> None:
+    numbers = tmp_path / "run.json"
+    command = ["bench", "run", "vc-rearm-not-valid", "--runs", "1", "--json", str(numbers)]
+    result = CliRunner().invoke(app, command)
+    assert result.exit_code == 0, result.output
+    [summary] = json.loads(numbers.read_text())["scenarios"]
+    assert (summary["scenario"], summary["runs"], summary["passed"]) == ("vc-rearm-not-valid", 1, 1)
