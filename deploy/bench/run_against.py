@@ -193,17 +193,18 @@ def _table(comparisons: Sequence[ScenarioComparison], tree: Side, ref: Side) -> 
         "tree p99",
         "ref median",
         "ref p99",
-        "tree/ref median",
-        "tree/ref p99",
+        "ratio median",
+        "ratio p99",
         "kpis.json",
     ):
         if column == "scenario":
-            table.add_column(column, overflow="fold")
+            longest = max((len(c.scenario) for c in comparisons), default=8)
+            table.add_column(column, overflow="fold", min_width=min(longest, 40))
         else:
             table.add_column(column, justify="right")
     for c in comparisons:
         if not c.compared_rounds:
-            verdict = "not compared"
+            verdict = "—"
         elif c.differences:
             verdict = f"{len(c.differences)} differences"
         else:
@@ -226,7 +227,7 @@ def _table(comparisons: Sequence[ScenarioComparison], tree: Side, ref: Side) -> 
 def _print_differences(console: Console, comparisons: Sequence[ScenarioComparison]) -> None:
     console.print(
         "runs: those that wrote kpis.json, tree/ref; p99: the factor 99 % of the runs reach; "
-        "tree/ref above 1: the tree is faster. kpis.json compared without "
+        "ratio: tree/ref, above 1 the tree is faster. kpis.json compared without "
         f"{', '.join(WALL_CLOCK_FIELDS)}.",
         markup=False,
     )
