@@ -320,15 +320,25 @@ def run_scenario(
         bool,
         typer.Option("--insecure", help="Plain TCP between trackside and onboard: debugging only."),
     ] = False,
+    database: DatabaseOption = None,
 ) -> None:
     """Run one scenario with trackside, onboard and operator in this process; exit 0 iff every
     expectation holds. The trackside and the onboard talk over TLS with certificates of a CA
-    made for the run, the trackside enforcing the access control."""
+    made for the run, the trackside enforcing the access control. A scenario's `line` that is
+    not built in is read (only read) from --database."""
     from deploy.scenario.console import run_from_cli
 
     _warn_insecure("ato run", None if insecure else Path())
     raise typer.Exit(
-        run_from_cli(scenario, fast=fast, speed=speed, seed=seed, report=report, insecure=insecure)
+        run_from_cli(
+            scenario,
+            fast=fast,
+            speed=speed,
+            seed=seed,
+            report=report,
+            insecure=insecure,
+            database_url=database,
+        )
     )
 
 

@@ -32,8 +32,10 @@ def run_from_cli(
     seed: int | None,
     report: Path | None,
     insecure: bool = False,
+    database_url: str | None = None,
 ) -> int:
-    """Run and print; the exit status: 0 passed, 1 an expectation failed, 2 could not run."""
+    """Run and print; the exit status: 0 passed, 1 an expectation failed, 2 could not run.
+    A stored line is read from ``database_url`` (default :func:`run_database_url`)."""
     console = Console(stderr=True)
     try:
         spec = load_scenario(scenario)
@@ -46,7 +48,7 @@ def run_from_cli(
         seed=seed,
         report_dir=report,
         insecure=insecure,
-        database_url=run_database_url(),
+        database_url=database_url or run_database_url(),
     )
     columns = (
         TextColumn("[bold]{task.description}"),

@@ -9,7 +9,9 @@ from pathlib import Path
 
 import pytest
 from sqlalchemy.orm import Session
+from typer.testing import CliRunner
 
+from deploy.cli import app
 from deploy.scenario import SCENARIO_DIR, ScenarioFileError, load_scenario, parse_scenario
 from deploy.scenario.console import run_database_url, run_from_cli
 from deploy.scenario.line_source import ScenarioLineError, resolve_line, stored_line
@@ -350,3 +352,12 @@ def test_ato_run_on_the_railjson_line_stops_at_both_intermediate_stops(
     assert kpis["max_overspeed_kmh"] <= 0.0
     assert kpis["etcs_sb_count"] == kpis["etcs_eb_count"] == kpis["vc_eb_count"] == 0
     assert "railjson-junction-valley: PASSED" in capsys.readouterr().out
+
+
+def test_ato_run_reads_a_stored_line_from_its_database_option(tmp_path: Path) -> None:
+    scenario = _write(tmp_path, "s.toml", HEADER + 'line = "valley-test"\n')
+    missing = tmp_path / "absent" / "none.db"
+    result = CliRunner().invoke(app, ["run", str(scenario), "--database", f"sqlite:///{missing}"])
+    assert result.exit_code == 2
+    assert "no database at" in " ".join(result.output.split())
+    assert str(missing) in result.output.replace("\n", "")
