@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from numpy.testing import assert_allclose
 
 from onboard.adf.autonomous import AutonomousDriving
 from onboard.adf.nmpc import NmpcConfig, NmpcController, NmpcReference
@@ -257,3 +258,28 @@ def test_catching_up_towards_a_lower_ceiling_brakes_into_it_without_failing() ->
             plant.step(0.01, force)
     assert driving.controller.stats.failures == 0
     assert plant.speed_mps <= 20 / 3.6
+
+
+def test_the_warm_start_is_the_last_plan_shifted_by_one_stage() -> None:
+    """The variables lie stage by stage ([x0, Δu0, x1, Δu1, ..., x_N]): the warm start takes
+    each stage's state and increment from the next stage of the last solution, the positions
+    measured from where its first step ends, and starts from the measured state."""
+    controller = NmpcController(URV_PARAMETERS)
+    times = np.arange(1, N + 1, dtype=np.float64) * DT
+    first = controller.solve(
+        position_m=0.0, speed_mps=5.0, applied_force_n=0.0, reference=_reference(times + 10.0)
+    )
+    assert first.success
+    last = controller._guess
+    assert last is not None
+    states, increments = last[controller._state_index], last[controller._increment_index]
+    assert_allclose(states[1:, 1], first.predicted_speed_mps, atol=0.0)
+    assert_allclose(np.diff(states[:, 3]), increments, atol=1e-9)  # u_{k+1} = u_k + Δu_k
+    measured = np.array([0.0, 5.2, 1.0, 1.1])
+    guess = controller._initial_guess(measured, np.zeros(N))
+    shifted = guess[controller._state_index]
+    assert_allclose(shifted[0], measured, atol=0.0)
+    assert_allclose(shifted[1:-1, 1:], states[2:, 1:], atol=0.0)
+    assert_allclose(shifted[1:-1, 0], states[2:, 0] - states[1, 0], atol=1e-12)
+    assert_allclose(guess[controller._increment_index][:-1], increments[1:], atol=0.0)
+    assert guess[controller._increment_index][-1] == 0.0
