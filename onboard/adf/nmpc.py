@@ -149,6 +149,9 @@ class NmpcController:
         self._state_index = stride * np.arange(n + 1)[:, None] + np.arange(STATE_SIZE)
         """Where each stage's state lies among the variables, (n + 1, 4)."""
         self._increment_index = stride * np.arange(n) + STATE_SIZE
+        self._multipliers: tuple[FloatArray, FloatArray] | None = None
+        """The last solution's multipliers of the bounds and of the constraints."""
+        self._shift_bounds, self._shift_constraints = _stage_shifts(n)
         self._demand_n: float | None = None
         self._reference: NmpcReference | None = None
 
@@ -255,6 +258,7 @@ class NmpcController:
     def reset(self) -> None:
         """Forget the warm start and the previous plan (after a mode change)."""
         self._guess = None
+        self._multipliers = None
         self._demand_n = None
         self._reference = None
 
@@ -290,7 +294,15 @@ class NmpcController:
                 self.stats.cold_starts += 1
                 solver = self._cold_solver
             guess = self._initial_guess(state, reference.track_force_n / KN)
-            solution = solver(x0=guess, p=parameters, **bounds)
+            multipliers = {}
+            if solver is self._solver and self._multipliers is not None:
+                lam_x, lam_g = self._multipliers
+                # As DM: casadi converts a numpy array element by element.
+                multipliers = {
+                    "lam_x0": ca.DM(lam_x[self._shift_bounds]),
+                    "lam_g0": ca.DM(lam_g[self._shift_constraints]),
+                }
+            solution = solver(x0=guess, p=parameters, **bounds, **multipliers)
             success = bool(solver.stats()["success"])
             if not success and self._feasible(solution, bounds):
                 self.stats.not_converged += 1
@@ -305,6 +317,10 @@ class NmpcController:
         values = np.asarray(solution["x"], dtype=float).ravel()
         states = values[self._state_index]
         self._guess = values
+        self._multipliers = (
+            np.asarray(solution["lam_x"], dtype=float).ravel(),
+            np.asarray(solution["lam_g"], dtype=float).ravel(),
+        )
         forces_n = states[1:, 3] * KN
         self._demand_n = float(forces_n[0])
         return NmpcResult(
@@ -410,6 +426,30 @@ class NmpcController:
             predicted_speed_mps=np.zeros(0),
             predicted_force_n=np.zeros(0),
         )
+
+
+def _stage_shifts(n: int) -> tuple[npt.NDArray[np.intp], npt.NDArray[np.intp]]:
+    """Where each multiplier of the next solve is taken from in the last one's: the bounds'
+    (x_k, Δu_k from stage k + 1, the last stage's kept) and the constraints' ([gap0, x0 − x̂]
+    from [gap1, x0 − x̂], gap_k, power_k from stage k + 1, the last gap kept, power_{n−1}
+    and power_n from power_n)."""
+    stride = STATE_SIZE + 1
+    variables = stride * n + STATE_SIZE
+    last_stage = np.arange(variables - stride - STATE_SIZE, variables)
+    bounds = np.concatenate([np.arange(stride, variables), last_stage[-stride:]])
+    first = 2 * STATE_SIZE  # stage 1's rows start after gap0 and x0 − x̂
+    power_n = variables - 1
+    last_gap = np.arange(power_n - stride, power_n - 1)
+    constraints = np.concatenate(
+        [
+            np.arange(first, first + STATE_SIZE),
+            np.arange(STATE_SIZE, first),
+            np.arange(first + stride, power_n),
+            last_gap,
+            [power_n, power_n],
+        ]
+    )
+    return bounds, constraints
 
 
 def _solver_options(config: NmpcConfig, max_iterations: int) -> dict[str, Any]:
