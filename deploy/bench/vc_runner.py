@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import random
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from deploy.bench.vc_responder import AtoObResponder, ResponderFault
 from deploy.bench.vc_scenarios import (
@@ -40,6 +40,7 @@ from onboard.etcs.balises import TelegramHeader
 from onboard.etcs.values import URV_TRAIN_DATA
 from onboard.runtime import Executive, SimClock
 from onboard.runtime.clock import NS_PER_S
+from onboard.vc.datalog import Datalog, DatalogRecorder
 from onboard.vc.fsm import FsmCoverage, FsmTransition, transition_coverage
 from onboard.vc.hardware import (
     EmergencyBrakeValves,
@@ -76,6 +77,8 @@ FUSION_CORRELATION_S = 1.0
 """⚠ A Kalman filter's speed error drifts slowly: a first-order Gauss–Markov error [s]."""
 EARLY_OVERSPEED_S = 0.5
 ATO_OB_PRIORITY = 0
+RECORDER_PRIORITY = ATO_OB_PRIORITY - 10
+"""What the VC shows at a tick is read after every task of the tick."""
 STEP_S = 0.002
 MOVING_MPS = 0.01
 """Above this true speed the train is moving."""
@@ -238,6 +241,11 @@ class ScenarioResult:
     transitions: tuple[FsmTransition, ...]
     pair_events: tuple[PairEvent, ...] = ()
     """2-out-of-2 only: the pair's events (replica EB, disagreement, watchdog)."""
+    ticks: tuple[tuple[object, ...], ...] = ()
+    """With ``record_ticks``: at every 2 ms instant, after every task, each replica's outputs
+    and its Tasks B and C's statuses, and the vehicle's valves."""
+    skipped_cycles: int = 0
+    """Cycles of Tasks B and C (all replicas) skipped as quiet (event-driven runs)."""
 
     @property
     def passed(self) -> bool:
@@ -325,11 +333,21 @@ def _hardware(scenario: Scenario) -> VcHardware:
     )
 
 
-def run_scenario(scenario: Scenario, *, replicas: int = 1, seed: int = 0) -> ScenarioResult:
+def run_scenario(
+    scenario: Scenario,
+    *,
+    replicas: int = 1,
+    seed: int = 0,
+    event_driven: bool | None = None,
+    record_ticks: bool = False,
+    datalog: Datalog | None = None,
+) -> ScenarioResult:
     """Run ``scenario`` in lockstep for its duration, on one VC or on two in 2-out-of-2
     (``replicas=2``: each replica with its own link and ATO-OB answering it, the same
     inputs, the vehicle's valves the pair's); measure and classify it. ``seed`` drives the
-    sensor-fusion speed's error (``fused_speed_supervision`` only)."""
+    sensor-fusion speed's error (``fused_speed_supervision`` only). ``event_driven``: Tasks B
+    and C skip their quiet cycles (None: as in any lockstep run, yes); ``record_ticks`` keeps
+    what the VC shows at every 2 ms instant, ``datalog`` records its notifications there."""
     if replicas not in (1, 2):
         raise ScenarioError(f"one VC or a 2-out-of-2 pair, not {replicas}")
     boards = [_hardware(scenario) for _ in range(replicas)]
@@ -344,9 +362,9 @@ def run_scenario(scenario: Scenario, *, replicas: int = 1, seed: int = 0) -> Sce
                 faults=[f for f in scenario.faults if isinstance(f, PipeFault)],
             ),
         )
-        pair.register(executive)
+        pair.register(executive, event_driven=event_driven)
     else:
-        vcs[0].register(executive)
+        vcs[0].register(executive, event_driven=event_driven)
     surroundings = _Surroundings(
         scenario, boards, pair.valves if pair else boards[0].valves, fusion_seed=seed
     )
@@ -365,8 +383,30 @@ def run_scenario(scenario: Scenario, *, replicas: int = 1, seed: int = 0) -> Sce
         executive.add_task(
             f"ato_ob{index}", responder.step_ns, period_s=STEP_S, priority=ATO_OB_PRIORITY
         )
+    ticks: list[tuple[object, ...]] = []
+    if record_ticks:
+        executive.add_task(
+            "ticks",
+            lambda release_ns: ticks.append(_tick(vcs, surroundings.valves, release_ns)),
+            period_s=STEP_S,
+            priority=RECORDER_PRIORITY,
+        )
+    if datalog is not None:
+        DatalogRecorder(datalog, vcs[0], pair=pair).register(executive, period_s=STEP_S)
     executive.run_until(round(scenario.duration_s * NS_PER_S))
-    return _result(scenario, vcs[0], surroundings, pair=pair)
+    result = _result(scenario, vcs[0], surroundings, pair=pair)
+    skipped = sum(vc.task_b.quiet.skipped + vc.task_c.quiet.skipped for vc in vcs)
+    return replace(result, ticks=tuple(ticks), skipped_cycles=skipped)
+
+
+def _tick(
+    vcs: Sequence[VitalControl], valves: EmergencyBrakeValves, release_ns: int
+) -> tuple[object, ...]:
+    now_s = release_ns / NS_PER_S
+    shown: list[object] = [release_ns, valves.energised, valves.pressure_fraction(now_s)]
+    for vc in vcs:
+        shown += [vc.outputs, vc.task_b.status.read(), vc.task_c.status.read()]
+    return tuple(shown)
 
 
 def _result(

@@ -15,6 +15,7 @@ be safe. Three tasks on the executive, sharing no mutable state:
   :mod:`~onboard.vc.datalog`: the black box (JSON Lines) and its reader;
 - :mod:`~onboard.vc.installation`: the VC as fitted to a vehicle, its I/O wired to the plant,
   the ETCS onboard and the BTM;
+- :mod:`~onboard.vc.quiet`: in lockstep, B and C skip the cycles that cannot change them;
 - :mod:`~onboard.vc.fsm`: their transition tables; :mod:`~onboard.vc.ipc`: their mailboxes and
   messages; :mod:`~onboard.vc.module`: :class:`VitalControl`, which wires and registers them.
 
@@ -134,6 +135,10 @@ from onboard.vc.odometry import (
     OdometryEstimate,
     TachometerOdometry,
 )
+from onboard.vc.quiet import (
+    QuietCycles,
+    skips_quiet_cycles,
+)
 from onboard.vc.redundancy import (
     VOTER_PRIORITY,
     PairEvent,
@@ -209,6 +214,7 @@ __all__ = [
     "PairEvent",
     "PairEventKind",
     "PipeFault",
+    "QuietCycles",
     "RadioRelay",
     "RedundancyConfig",
     "RelayFault",
@@ -248,5 +254,6 @@ __all__ = [
     "expected_response_number",
     "read_datalog",
     "select_rule",
+    "skips_quiet_cycles",
     "transition_coverage",
 ]

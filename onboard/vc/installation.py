@@ -148,15 +148,18 @@ class VcInstallation:
         """The valves that brake the vehicle: the board's, or the pair's."""
         return self.pair.valves if self.pair is not None else self.boards[0].hardware.valves
 
-    def register(self, executive: Executive, *, phase_s: float = 0.0) -> None:
-        """Add ``vc.io`` and the VC's tasks (and the pair's voter) to ``executive``."""
+    def register(
+        self, executive: Executive, *, phase_s: float = 0.0, event_driven: bool | None = None
+    ) -> None:
+        """Add ``vc.io`` and the VC's tasks (and the pair's voter) to ``executive``;
+        ``event_driven``: Tasks B and C skip their quiet cycles (None: in lockstep only)."""
         executive.add_task(
             "vc.io", self._io, period_s=IO_PERIOD_S, phase_s=phase_s, priority=IO_PRIORITY
         )
         if self.pair is not None:
-            self.pair.register(executive, phase_s=phase_s)
+            self.pair.register(executive, phase_s=phase_s, event_driven=event_driven)
         else:
-            self.boards[0].vc.register(executive, phase_s=phase_s)
+            self.boards[0].vc.register(executive, phase_s=phase_s, event_driven=event_driven)
 
     def balise_read(self, header: TelegramHeader) -> None:
         """The BTM read a telegram with this header; forwarded at the next I/O cycle."""

@@ -149,6 +149,11 @@ class FaultyLink(Generic[T]):
         self._count += 1
         heapq.heappush(self._in_flight, (now_s + delay_s, self._count, message))
 
+    def arrived_by(self, now_s: float) -> bool:
+        """Whether :meth:`receive` at ``now_s`` would hand over a message."""
+        in_flight = self._in_flight
+        return bool(in_flight) and in_flight[0][0] <= now_s + TIME_TOLERANCE_S
+
     def receive(self, now_s: float) -> tuple[Delivery[T], ...]:
         """The messages arrived by ``now_s``, oldest first, each with its arrival time."""
         if not self._in_flight or self._in_flight[0][0] > now_s + TIME_TOLERANCE_S:

@@ -45,6 +45,7 @@ from onboard.vc.messages import (
     Notification,
     VcRequest,
 )
+from onboard.vc.quiet import skips_quiet_cycles
 from onboard.vc.task_a import TaskA
 from onboard.vc.task_b import TaskB
 from onboard.vc.task_c import TaskC
@@ -190,8 +191,18 @@ class VitalControl:
             start_s=start_s,
         )
 
-    def register(self, executive: Executive, *, phase_s: float = 0.0) -> tuple[Task, Task, Task]:
-        """Add the tasks ``vc.B``, ``vc.C`` and ``vc.A`` to ``executive``; returns them."""
+    def skip_quiet_cycles(self, enabled: bool) -> None:
+        """Tasks B and C skip the cycles that cannot change them (:mod:`onboard.vc.quiet`)."""
+        self.task_b.quiet.enabled = enabled
+        self.task_c.quiet.enabled = enabled
+
+    def register(
+        self, executive: Executive, *, phase_s: float = 0.0, event_driven: bool | None = None
+    ) -> tuple[Task, Task, Task]:
+        """Add the tasks ``vc.B``, ``vc.C`` and ``vc.A`` to ``executive``; returns them.
+
+        ``event_driven``: B and C skip their quiet cycles (None: in lockstep only)."""
+        self.skip_quiet_cycles(skips_quiet_cycles(executive, event_driven))
         config = self.config
         return (
             executive.add_task(

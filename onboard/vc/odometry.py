@@ -98,6 +98,23 @@ class TachometerOdometry:
         if self._good_frames >= config.recovery_frames:
             self._not_efficient_since_s = None
 
+    def timeout_threshold_s(self) -> float:
+        """:meth:`update` finds the board silent at any ``now_s`` above this [s]."""
+        return self._last_arrival_s + self.config.tachometer_timeout_s + TIME_TOLERANCE_S
+
+    def state_key(self) -> tuple[object, ...]:
+        """The estimator's whole state, for comparing two instants."""
+        return (
+            self._reference,
+            self._last_arrival_s,
+            self._good_frames,
+            self._zero_frames,
+            self._speed_mps,
+            self._speed_updated_s,
+            self._position_m,
+            self._not_efficient_since_s,
+        )
+
     def update(self, now_s: float, frames: Sequence[Delivery[TachometerFrame]]) -> OdometryEstimate:
         """Take the frames arrived since the last call; return the estimate at ``now_s``."""
         for delivery in frames:

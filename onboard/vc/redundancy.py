@@ -35,6 +35,7 @@ from onboard.vc.module import (
     VcOutputs,
     VitalControl,
 )
+from onboard.vc.quiet import skips_quiet_cycles
 
 __all__ = [
     "VOTER_PRIORITY",
@@ -223,9 +224,15 @@ class TwoOutOfTwo:
             for f in self.faults
         )
 
-    def register(self, executive: Executive, *, phase_s: float = 0.0) -> None:
-        """Add ``vc0.B``, ``vc0.C``, ``vc0.A``, the same for ``vc1``, and ``vc.2oo2``."""
+    def register(
+        self, executive: Executive, *, phase_s: float = 0.0, event_driven: bool | None = None
+    ) -> None:
+        """Add ``vc0.B``, ``vc0.C``, ``vc0.A``, the same for ``vc1``, and ``vc.2oo2``.
+
+        ``event_driven``: B and C skip their quiet cycles (None: in lockstep only)."""
+        skip = skips_quiet_cycles(executive, event_driven)
         for index, replica in enumerate(self.replicas):
+            replica.skip_quiet_cycles(skip)
             config = replica.config
             tasks: tuple[tuple[str, Callable[[float], object], float, int], ...] = (
                 (

@@ -56,6 +56,7 @@ from onboard.vc.messages import (
     expected_response_number,
 )
 from onboard.vc.odometry import OdometryEstimate, TachometerOdometry
+from onboard.vc.quiet import QuietCycles
 
 __all__ = ["CONFIRMED_SECTIONS", "TaskB"]
 
@@ -142,6 +143,15 @@ class TaskB:
         # Conditions found this cycle, with their evidence time.
         self._found: dict[EbCondition, float] = {}
         self._found_decays: list[tuple[DecayReason, float]] = []
+        self.quiet = QuietCycles()
+        """Skips the cycles that cannot change anything (lockstep only: :mod:`onboard.vc.quiet`)."""
+        # What the last full cycle read, for the quiet cycles' check.
+        self._took_input = False
+        self._status: SupervisionStatus | None = None
+        self._read_inserted = True
+        self._read_released = False
+        self._read_brake_state: BrakeState | None = None
+        self._fused_stale = True
 
     # -- requests and responses ------------------------------------------------------------
 
@@ -245,6 +255,7 @@ class TaskB:
         arrived = self._fused_speeds.take_all()
         if arrived:
             self._fused = arrived[-1]
+            self._took_input = True
         fused = self._fused
         if fused is None or now_s - fused.arrived_s > self.config.fused_speed_timeout_s:
             return None
@@ -254,21 +265,102 @@ class TaskB:
 
     def step(self, now_s: float) -> SupervisionStatus:
         """One cycle at ``now_s``; returns (and posts) the status."""
+        quiet, last = self.quiet, self._status
+        if quiet.enabled and now_s <= quiet.until_s and last and self._quiet_inputs(now_s):
+            quiet.skipped += 1
+            status = last._replace(time_s=now_s)
+            self.status.post(status)
+            return status
         self._found = {}
         self._found_decays = []
-        for request in self._requests_sent.take_all():
+        requests = self._requests_sent.take_all()
+        for request in requests:
             self._register(request)
-        for delivery in self._response_link.receive(now_s):
+        responses = self._response_link.receive(now_s)
+        for delivery in responses:
             self._check_response(delivery, now_s)
         self._check_deadlines(now_s)
-        odometry = self._odometry.update(now_s, self._tachometer_frames.take_all())
+        frames = self._tachometer_frames.take_all()
+        odometry = self._odometry.update(now_s, frames)
+        self._took_input = bool(requests or responses or frames)
         isolated = self._check_isolated_odometry(now_s, odometry)
         headers = self._balise_telegrams.take_all()
         if headers:
             self._last_balise_header = headers[-1].message
+            self._took_input = True
         self._record(now_s)
         self._transition(now_s, odometry)
-        return self._publish(now_s, odometry, isolated)
+        status = self._publish(now_s, odometry, isolated)
+        if quiet.enabled:
+            self._note_full_cycle(now_s, status)
+        return status
+
+    # -- quiet cycles (lockstep) -----------------------------------------------------------
+
+    def _quiet_inputs(self, now_s: float) -> bool:
+        """Every input the cycle would read at ``now_s`` is as the last full cycle read it."""
+        if (
+            self._requests_sent
+            or self._tachometer_frames
+            or self._balise_telegrams
+            or self._response_link.arrived_by(now_s)
+        ):
+            return False
+        if self._read_etcs_inserted(now_s) is not self._read_inserted:
+            return False
+        if self._read_eb_released(now_s) is not self._read_released:
+            return False
+        actuation = self._actuation.read()
+        if (actuation.brake_state if actuation else None) is not self._read_brake_state:
+            return False
+        return self._fused_quiet(now_s)
+
+    def _fused_quiet(self, now_s: float) -> bool:
+        if self._fused_speeds is None or not self.config.fused_speed_supervision:
+            return True
+        if self._fused_speeds and not self._read_inserted:
+            return False  # isolated: the cycle would take the new fused speeds
+        fused = self._fused
+        stale = fused is None or now_s - fused.arrived_s > self.config.fused_speed_timeout_s
+        return stale is self._fused_stale
+
+    def _note_full_cycle(self, now_s: float, status: SupervisionStatus) -> None:
+        self._status = status
+        self._read_inserted = not status.etcs_isolated
+        self._read_released = status.eb_released
+        actuation = self._actuation.read()
+        self._read_brake_state = actuation.brake_state if actuation else None
+        fused = self._fused
+        self._fused_stale = (
+            fused is None or now_s - fused.arrived_s > self.config.fused_speed_timeout_s
+        )
+        thresholds = [o.deadline_s + TIME_TOLERANCE_S for o in self._outstanding.values()]
+        if self._vigilance_deadline_s is not None:
+            thresholds.append(self._vigilance_deadline_s + TIME_TOLERANCE_S)
+        thresholds.append(self._odometry.timeout_threshold_s())
+        self.quiet.after_full_cycle(
+            now_s, self._fingerprint(status), took_input=self._took_input, thresholds=thresholds
+        )
+
+    def _fingerprint(self, status: SupervisionStatus) -> tuple[object, ...]:
+        """Every piece of state a cycle can change, and its status but for the time."""
+        return (
+            status[1:],
+            self.fsm.state,
+            len(self.fsm.transitions),
+            len(self.events),
+            self._fused,
+            self._odometry.state_key(),
+            tuple(self._outstanding.items()),
+            tuple(self._current.values()),
+            tuple(self._confirmed.values()),
+            self._vigilance_deadline_s,
+            self._isolated_since_s,
+            self._previous_live,
+            frozenset(self._eb_conditions),
+            len(self._decay_reasons),
+            self._last_balise_header,
+        )
 
     def _record(self, now_s: float) -> None:
         if not (self._found or self._found_decays or self._previous_live):

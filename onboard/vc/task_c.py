@@ -30,6 +30,7 @@ from onboard.vc.fsm import (
 )
 from onboard.vc.ipc import ActuationStatus, Mailbox, SupervisionStatus, VcEvent, VcEventKind
 from onboard.vc.messages import DecayReason
+from onboard.vc.quiet import QuietCycles
 
 __all__ = ["TaskC"]
 
@@ -83,6 +84,10 @@ class TaskC:
             "rearm": None,
         }
         self._refused: set[tuple[str, int]] = set()
+        self.quiet = QuietCycles()
+        """Skips the cycles that cannot change anything (lockstep only: :mod:`onboard.vc.quiet`)."""
+        self._input: SupervisionStatus | None = None
+        self._actuation: ActuationStatus | None = None
 
     def _event(
         self, now_s: float, kind: VcEventKind, detail: str, evidence_s: float | None = None
@@ -215,6 +220,53 @@ class TaskC:
     def step(self, now_s: float) -> ActuationStatus:
         """One cycle at ``now_s``; returns (and posts) the status."""
         status = self._supervision.read()
+        quiet, last = self.quiet, self._actuation
+        if (
+            quiet.enabled
+            and now_s <= quiet.until_s
+            and last is not None
+            and status is not None
+            and self._input is not None
+            and status[1:] == self._input[1:]
+        ):
+            # Task B's status but for its time, no threshold crossed: a repeated fixed point.
+            quiet.skipped += 1
+            actuation = last._replace(time_s=now_s)
+            self.status.post(actuation)
+            return actuation
+        actuation = self._full_cycle(now_s, status)
+        if quiet.enabled:
+            self._input, self._actuation = status, actuation
+            quiet.after_full_cycle(
+                now_s,
+                self._fingerprint(actuation),
+                took_input=False,
+                thresholds=(
+                    self._switch_started_s
+                    + self.config.relay_verification_timeout_s
+                    + TIME_TOLERANCE_S,
+                    self._rearm_started_s + self.config.rearm_timeout_s + TIME_TOLERANCE_S,
+                ),
+            )
+        return actuation
+
+    def _fingerprint(self, actuation: ActuationStatus) -> tuple[object, ...]:
+        """Every piece of state a cycle can change, and its status but for the time."""
+        return (
+            actuation[1:],
+            self.brake.state,
+            len(self.brake.transitions),
+            self.etcs.state,
+            len(self.etcs.transitions),
+            len(self.events),
+            len(self._decay_reasons),
+            self._switch_started_s,
+            self._rearm_started_s,
+            tuple(self._consumed.values()),
+            len(self._refused),
+        )
+
+    def _full_cycle(self, now_s: float, status: SupervisionStatus | None) -> ActuationStatus:
         if status is not None:
             self._step_etcs(now_s, status, status.system_decay or bool(self._decay_reasons))
             self._step_brake(now_s, status, status.system_decay or bool(self._decay_reasons))
