@@ -37,6 +37,29 @@ def test_fast_prediction_equals_filterpys(ring: TrackMap) -> None:
     assert_allclose(fast.kf.P, reference.P, rtol=1e-10, atol=1e-12)
 
 
+def test_scalar_update_equals_filterpys_bit_for_bit(ring: TrackMap) -> None:
+    fast = TrackKalmanFilter(ring)
+    fast.initialise(100.0, 12.0, 0.0)
+    reference = KalmanFilter(dim_x=5, dim_z=1)
+    reference.inv = lambda matrix: np.array([[1.0 / float(matrix[0, 0])]])
+    reference.x = fast.kf.x.copy()
+    reference.P = fast.kf.P.copy()
+    rng = np.random.default_rng(24)
+    for step in range(300):
+        dt_s, u = float(rng.uniform(0.005, 0.05)), float(rng.normal(0.0, 0.5))
+        fast.predict(dt_s, u)
+        reference.x, reference.P = fast.kf.x.copy(), fast.kf.P.copy()
+        if step % 3 == 0:
+            h = np.array([[1.0, -0.1, 0.0, 0.0, 1.0]])
+        else:
+            h = np.array([[0.0, 1.0 + rng.normal(0, 0.01), rng.uniform(0, 0.03), 12.0, 0.0]])
+        z, variance = float(rng.normal(fast.kf.x[1, 0], 0.2)), float(rng.uniform(1e-4, 0.1))
+        fast._update(z, h, variance)
+        reference.update(np.array([[z]]), R=np.array([[variance]]), H=h)
+        np.testing.assert_array_equal(fast.kf.x, reference.x)
+        np.testing.assert_array_equal(fast.kf.P, reference.P)
+
+
 def test_estimate_before_ground_truth_raises(ring: TrackMap) -> None:
     with pytest.raises(NotInitialisedError):
         _ = TrackKalmanFilter(ring).chainage_m
