@@ -38,6 +38,7 @@ import casadi as ca
 import numpy as np
 import numpy.typing as npt
 
+from onboard.adf.nlp_call import BufferedNlp
 from onboard.plant.point_mass import MIN_POWER_SPEED_MPS, PointMassParameters
 
 __all__ = ["NmpcConfig", "NmpcController", "NmpcReference", "NmpcResult", "NmpcStats"]
@@ -135,13 +136,17 @@ class NmpcController:
         self.config = config or NmpcConfig()
         self.stats = NmpcStats()
         self._step = self._dynamics()
-        problem, self._bounds = self._build()
-        self._upper_x: FloatArray = np.asarray(self._bounds["ubx"], dtype=float).ravel()
+        problem, bounds = self._build()
+        self._upper_x = bounds["ubx"]
         # One NLP, two iteration caps: casadi fixes a solver's options when it is made.
         self._solver, self._cold_solver = (
-            ca.nlpsol("nmpc", self.config.solver, problem, _solver_options(self.config, cap))
+            BufferedNlp(
+                ca.nlpsol("nmpc", self.config.solver, problem, _solver_options(self.config, cap))
+            )
             for cap in (self.config.max_iterations, self.config.max_cold_iterations)
         )
+        for solver in (self._solver, self._cold_solver):
+            solver(**bounds)  # the constant bounds, set once (a solve of zeros, discarded)
         n = self.config.horizon_steps
         self._guess: FloatArray | None = None
         stride = STATE_SIZE + 1
@@ -179,7 +184,7 @@ class NmpcController:
         end = start + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         return ca.Function("step", [state, increment, track], [end])
 
-    def _build(self) -> tuple[dict[str, Any], dict[str, ca.DM]]:
+    def _build(self) -> tuple[dict[str, Any], dict[str, FloatArray]]:
         """The NLP (for ``ca.nlpsol``) and its bounds, stage by stage: the variables
         [x0, Δu0, x1, Δu1, ..., x_N] and the constraints [gap0, x0 − x̂, gap1, power1, ...,
         power_N]. In this order the QP's KKT matrix is banded, and qrqp's sparse QR of it
@@ -238,11 +243,11 @@ class NmpcController:
             "lbg": lower,
             "ubg": upper,
         }
-        # Converted once: casadi converts Python lists element by element at every call.
-        return problem, {key: ca.DM(values) for key, values in bounds.items()}
+        return problem, {key: np.array(values, dtype=float) for key, values in bounds.items()}
 
-    def _stage_bounds(self, reference: NmpcReference) -> dict[str, ca.DM]:
-        """The NLP's bounds with each stage's ceiling as the upper bound of its predicted speed.
+    def _stage_bounds(self, reference: NmpcReference) -> FloatArray:
+        """The NLP's upper bounds of the variables with each stage's ceiling as the upper bound
+        of its predicted speed.
 
         The ceiling is a bound, not a constraint row ``v − v_max ≤ 0``: beside the speed's own
         bounds such a row is a second, linearly dependent constraint on the same variable, and
@@ -253,7 +258,7 @@ class NmpcController:
         speeds = self._state_index[1:, 1]
         ceilings = np.minimum(reference.max_speed_mps, MAX_SPEED_MPS)
         upper[speeds] = np.maximum(ceilings, self.config.min_predicted_speed_mps)
-        return dict(self._bounds, ubx=ca.DM(upper))
+        return upper
 
     def reset(self) -> None:
         """Forget the warm start and the previous plan (after a mode change)."""
@@ -283,7 +288,7 @@ class NmpcController:
                 reference.track_force_n / KN,
             ]
         )
-        bounds = self._stage_bounds(reference)
+        upper = self._stage_bounds(reference)
         if self._jumped(reference):
             self._guess = None
         self._reference = reference
@@ -294,17 +299,14 @@ class NmpcController:
                 self.stats.cold_starts += 1
                 solver = self._cold_solver
             guess = self._initial_guess(state, reference.track_force_n / KN)
-            multipliers = {}
+            lam_x: FloatArray | float = 0.0
+            lam_g: FloatArray | float = 0.0
             if solver is self._solver and self._multipliers is not None:
-                lam_x, lam_g = self._multipliers
-                # As DM: casadi converts a numpy array element by element.
-                multipliers = {
-                    "lam_x0": ca.DM(lam_x[self._shift_bounds]),
-                    "lam_g0": ca.DM(lam_g[self._shift_constraints]),
-                }
-            solution = solver(x0=guess, p=parameters, **bounds, **multipliers)
-            success = bool(solver.stats()["success"])
-            if not success and self._feasible(solution, bounds):
+                lam_x = self._multipliers[0][self._shift_bounds]
+                lam_g = self._multipliers[1][self._shift_constraints]
+            solution = solver(x0=guess, p=parameters, ubx=upper, lam_x0=lam_x, lam_g0=lam_g)
+            success = solver.success
+            if not success and self._feasible(solver):
                 self.stats.not_converged += 1
                 success = True
         except RuntimeError:
@@ -314,13 +316,10 @@ class NmpcController:
         self.stats.solve_times_s.append(elapsed)
         if not success or solution is None:
             return self._fallback(elapsed, speed_mps, reference)
-        values = np.asarray(solution["x"], dtype=float).ravel()
+        values = solution["x"].copy()
         states = values[self._state_index]
         self._guess = values
-        self._multipliers = (
-            np.asarray(solution["lam_x"], dtype=float).ravel(),
-            np.asarray(solution["lam_g"], dtype=float).ravel(),
-        )
+        self._multipliers = (solution["lam_x"].copy(), solution["lam_g"].copy())
         forces_n = states[1:, 3] * KN
         self._demand_n = float(forces_n[0])
         return NmpcResult(
@@ -350,17 +349,17 @@ class NmpcController:
                 return True
         return False
 
-    def _feasible(self, solution: dict[str, Any], b: dict[str, ca.DM]) -> bool:
-        """Whether a solution meets every constraint and bound ``b`` within the feasibility
-        tolerance."""
+    def _feasible(self, solver: BufferedNlp) -> bool:
+        """Whether the solver's last solution meets every constraint and bound within the
+        feasibility tolerance."""
         tolerance = self.config.feasibility_tolerance
-        g = np.asarray(solution["g"], dtype=float).ravel()
-        x = np.asarray(solution["x"], dtype=float).ravel()
+        bounds, solution = solver.inputs, solver.outputs
+        g, x = solution["g"], solution["x"]
         excess = max(
-            float(np.max(np.asarray(b["lbg"]).ravel() - g)),
-            float(np.max(g - np.asarray(b["ubg"]).ravel())),
-            float(np.max(np.asarray(b["lbx"]).ravel() - x)),
-            float(np.max(x - np.asarray(b["ubx"]).ravel())),
+            float(np.max(bounds["lbg"] - g)),
+            float(np.max(g - bounds["ubg"])),
+            float(np.max(bounds["lbx"] - x)),
+            float(np.max(x - bounds["ubx"])),
         )
         return bool(np.all(np.isfinite(x))) and excess <= tolerance
 
