@@ -5,7 +5,9 @@ Tasks A, B and C of one :class:`~onboard.vc.VitalControl` run with the
 tachometer board:
 
 1. in lockstep (:class:`~onboard.runtime.SimClock`) for 10⁶ runs of Task B (2000 s simulated):
-   execution time per task (median, p99, max), which does not depend on pacing;
+   execution time per task (median, p99, max), which does not depend on pacing, every cycle a
+   full one as in real time; then the same event-driven, as a lockstep run has them (Tasks B
+   and C skip their quiet cycles, :mod:`onboard.vc.quiet`);
 2. in real time (:class:`~onboard.runtime.RealTimeClock`, speed 1) for ``seconds`` (60 by
    default), once sleeping until each release and once polling the clock for its last 500 µs:
    lateness of each release against wall time (p50, p99, max) and deadline misses (lateness +
@@ -89,13 +91,16 @@ def _instrument(executive: Executive, clock: Clock) -> dict[str, TaskTiming]:
     return timings
 
 
-def _run(clock: Clock, seconds: float) -> tuple[dict[str, TaskTiming], VitalControl, float]:
-    """One VC, its ATO-OB double and a standing train for ``seconds`` of ``clock``'s time."""
+def _run(
+    clock: Clock, seconds: float, *, event_driven: bool = False
+) -> tuple[dict[str, TaskTiming], VitalControl, float]:
+    """One VC, its ATO-OB double and a standing train for ``seconds`` of ``clock``'s time;
+    every cycle a full one unless ``event_driven`` (Tasks B and C skip their quiet cycles)."""
     hardware = VcHardware.emulated()
     vc = VitalControl(hardware)
     executive = Executive(clock)
     executive.add_task("train", _StandingTrain(hardware).step_ns, period_s=0.002, priority=40)
-    vc.register(executive)
+    vc.register(executive, event_driven=event_driven)
     responder = AtoObResponder(hardware.request_link, hardware.response_link)
     executive.add_task("ato_ob", responder.step_ns, period_s=0.002, priority=0)
     timings = _instrument(executive, clock)
@@ -140,6 +145,14 @@ def bench_vc(
         title = (
             f"VC execution time in lockstep: {lockstep_s:g} s simulated in {wall_s:.1f} s "
             f"wall (Python, this machine; the seeds' WCET A/B/C: 20/24/31 µs)"
+        )
+        console.print(_table(title, timings, lateness=False))
+        timings, vc, wall_s = _run(SimClock(), lockstep_s, event_driven=True)
+        results["lockstep, event-driven"] = timings
+        skipped = vc.task_b.quiet.skipped, vc.task_c.quiet.skipped
+        title = (
+            f"The same, event-driven as in any lockstep run: {wall_s:.1f} s wall; quiet cycles "
+            f"skipped: B {skipped[0]}, C {skipped[1]}"
         )
         console.print(_table(title, timings, lateness=False))
     for spin_us in spins_us:

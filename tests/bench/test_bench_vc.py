@@ -12,10 +12,16 @@ def test_bench_vc_times_lockstep_runs_and_both_real_time_waits(
     capsys: pytest.CaptureFixture[str],
 ) -> None:
     results = bench_vc(seconds=0.5, execution_runs=1000, spins_us=(0.0, 500.0))
-    assert set(results) == {"lockstep", "real time, spin 0 µs", "real time, spin 500 µs"}
-    lockstep = results["lockstep"]
-    assert lockstep["vc.B"].runs == lockstep["vc.C"].runs == 1001
-    assert lockstep["vc.A"].runs == 51
+    assert set(results) == {
+        "lockstep",
+        "lockstep, event-driven",
+        "real time, spin 0 µs",
+        "real time, spin 500 µs",
+    }
+    for phase in ("lockstep", "lockstep, event-driven"):
+        lockstep = results[phase]
+        assert lockstep["vc.B"].runs == lockstep["vc.C"].runs == 1001
+        assert lockstep["vc.A"].runs == 51
     for timings in results.values():
         assert all(sample > 0 for sample in timings["vc.B"].execution_ns)
     real_time = results["real time, spin 500 µs"]
@@ -23,6 +29,7 @@ def test_bench_vc_times_lockstep_runs_and_both_real_time_waits(
     assert real_time["vc.A"].runs == 13
     out = capsys.readouterr().out
     assert "execution time in lockstep" in out
+    assert "event-driven" in out
     assert "polling the last 500 µs" in out
     for column in ("exec median", "exec p99", "late p99", "misses"):
         assert column in out
