@@ -316,7 +316,7 @@ class ListenerCore:
         if not imu_alive:
             # A dead IMU must not leave its last acceleration integrating for ever; the speed is
             # then the odometer's, with the train's accelerations as the unknown input.
-            flt.last_input_mps2 = flt.bias_mps2
+            flt.last_input_mps2 = float(flt.kf.x[2, 0])
         flt.unknown_input_sigma_mps2 = None if imu_alive else DEAD_IMU_ACCELERATION_SIGMA_MPS2
         odometer_alive = (
             epoch_s - seen.get("odometer", -math.inf) <= config.odometer_silence_s
@@ -327,7 +327,10 @@ class ListenerCore:
         elif self._odometer_failed_at_s is None:
             self._odometer_failed_at_s = epoch_s
         gps_alive = epoch_s - seen.get("gps", -math.inf) <= config.gps_silence_s
-        sigma_m = flt.position_sigma_m
+        # Read from the filter's arrays directly, not through its checked properties: this runs
+        # for every datagram and the filter is initialised here (the same values).
+        x = flt.kf.x
+        sigma_m = math.sqrt(max(float(flt.kf.P[0, 0]), 0.0))
         if not imu_alive and not odometer_alive:
             health = Health.LOST
         elif not (imu_alive and odometer_alive) or sigma_m > config.degraded_sigma_m:
@@ -336,8 +339,8 @@ class ListenerCore:
             health = Health.OK
         self.status = SfaStatus(
             epoch_s=epoch_s,
-            chainage_m=flt.chainage_m,
-            speed_mps=flt.speed_mps,
+            chainage_m=float(x[0, 0]),
+            speed_mps=float(x[1, 0]),
             sigma_m=sigma_m,
             health=health,
             imu_alive=imu_alive,
