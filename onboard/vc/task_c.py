@@ -231,7 +231,7 @@ class TaskC:
         ):
             # Task B's status but for its time, no threshold crossed: a repeated fixed point.
             quiet.skipped += 1
-            actuation = last._replace(time_s=now_s)
+            actuation = ActuationStatus._make((now_s, *last[1:]))
             self.status.post(actuation)
             return actuation
         actuation = self._full_cycle(now_s, status)
