@@ -1,0 +1,20 @@
+"""``ato bench adf``'s paired lap: IPOPT solving each of our NMPC's problems beside it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from deploy.bench.adf_bench import field_test_lap
+from deploy.bench.adf_paired import PairedController
+from onboard.plant import URV_PARAMETERS
+
+
+def test_ipopt_beside_solves_every_problem_and_changes_nothing_of_the_lap() -> None:
+    alone, _ = field_test_lap("sqpmethod", "energy", duration_s=30.0)
+    paired = PairedController(URV_PARAMETERS)
+    beside, _ = field_test_lap("sqpmethod", "energy", duration_s=30.0, controller=paired)
+    assert np.array_equal(beside.speeds_mps, alone.speeds_mps)
+    assert paired.stats.solves == alone.nmpc.solves == 150
+    assert paired.ipopt_stats.solves == paired.stats.solves
+    assert paired.ipopt_stats.failures == 0
+    assert len(paired.ipopt_stats.solve_times_s) == 150
