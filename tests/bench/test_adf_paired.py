@@ -18,3 +18,4 @@ def test_ipopt_beside_solves_every_problem_and_changes_nothing_of_the_lap() -> N
     assert paired.ipopt_stats.solves == paired.stats.solves
     assert paired.ipopt_stats.failures == 0
     assert len(paired.ipopt_stats.solve_times_s) == 150
+    assert len(paired.cpu_times_s) == len(paired.ipopt_cpu_times_s) == 150
