@@ -61,7 +61,6 @@ FloatArray = npt.NDArray[np.float64]
 MATRIX_CACHE_SIZE = 256
 """Prediction steps whose matrices are kept (the cache starts again when full)."""
 _matmul = np.matmul
-_add = np.add
 _POSITION_H = np.array([[1.0, 0.0, 0.0, 0.0, 0.0]])
 DIM_X = 5
 """State size: chainage, speed, accelerometer bias, odometer scale error, GPS error."""
@@ -332,11 +331,7 @@ class TrackKalmanFilter:
         x[0, 0] = position + speed * dt_s + 0.5 * acceleration * dt_s * dt_s
         x[1, 0] = speed + acceleration * dt_s
         x[4, 0] *= self._transition[4, 4]
-        # F P Fᵀ + Q as `F @ P @ Fᵀ + Q` computes it (the same products and sum, the same
-        # bits), by the functions rather than the operators: half the time on 5×5 arrays.
-        self.kf.P = _add(
-            _matmul(_matmul(self._transition, self.kf.P), self._transition_t), self._process
-        )
+        self.kf.P = self._transition @ self.kf.P @ self._transition_t + self._process
         if self.unknown_input_sigma_mps2 is not None:
             # Continuous white acceleration of density σ² × UNKNOWN_INPUT_HOLD_S: the speed's
             # variance grows by that much a second whatever the step. Drawn afresh each step
@@ -389,12 +384,12 @@ class TrackKalmanFilter:
 
         filterpy's ``KalmanFilter.update`` step by step (Joseph form), its operands kept as they
         are where they are sums, so that x and P come out bit for bit the same (a test checks
-        it): the products with a sum stay BLAS products, by ``numpy.matmul`` as in the
-        prediction (the same bits as filterpy's ``numpy.dot``); the products by a 1×1 matrix
-        (S⁻¹, R, y), one multiplication an element, are broadcast instead. Left out is what no one here reads:
-        the copies filterpy keeps of z, x and P, its reshaping, the arrays made for z and R at
-        every call, and y, P hᵀ and S worked out a second time after the gate (28 µs → about
-        12 µs an update, gate included).
+        it): the products with a sum stay BLAS products (``numpy.matmul``, the same bits as
+        filterpy's ``numpy.dot``); the products by a 1×1 matrix (S⁻¹, R, y), one multiplication
+        an element, are broadcast instead. Left out is what no one here reads: the copies
+        filterpy keeps of z, x and P, its reshaping, the arrays made for z and R at every call,
+        and y, P hᵀ and S worked out a second time after the gate (docs/perf.md, "Sensor
+        fusion").
         """
         kf = self.kf
         gain = gain_numerator * (1.0 / innovation_variance)
