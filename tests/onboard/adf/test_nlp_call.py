@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -15,7 +17,7 @@ def _solver() -> ca.Function:
     or not with p."""
     x, p = ca.SX.sym("x", 2), ca.SX.sym("p")
     problem = {"x": x, "p": p, "f": (x[0] - p) ** 2 + (x[1] - 2) ** 2, "g": x[0] + x[1]}
-    options = {"qpsol": "qrqp", "print_time": False, "print_header": False}
+    options: dict[str, Any] = {"qpsol": "qrqp", "print_time": False, "print_header": False}
     options |= {"print_iteration": False, "print_status": False, "error_on_fail": False}
     options["qpsol_options"] = {"print_iter": False, "print_header": False}
     return ca.nlpsol("small", "sqpmethod", problem, options)
