@@ -259,8 +259,10 @@ def test_lockstep_runs_with_the_vc_are_identical(
 
     def run() -> list[tuple[float, float, str, bool]]:
         node = _node(onboard)
+        # Each run's trackside bridge is closed with it: a bridge left over from the first run
+        # would answer the second node's session request too, with a session of its own.
+        hands = LockstepOperator(trackside, node)
         try:
-            hands = LockstepOperator(trackside, node)
             assert wait_for(lambda: _reachable(hands))
             _drive(hands, 30.0)
             trace = []
@@ -277,6 +279,7 @@ def test_lockstep_runs_with_the_vc_are_identical(
                 )
             return trace
         finally:
+            hands.close()
             node.close()
 
     assert run() == run()
