@@ -18,14 +18,10 @@ MAX_CLASS_LINES = 300
 MAX_FUNCTION_LINES = 60
 
 EXCEPTIONS: dict[str, str] = {
-    "onboard/vc/task_b.py:TaskB": "issue 24's quiet cycles read Task B's private inputs; to be "
-    "split out with the event-driven release (docs/vc.md)",
     "onboard/adf/nmpc.py:NmpcController._build": "the stage-by-stage NLP in one place, to be "
     "split with the NMPC's next step (issue 24)",
     "onboard/adf/nmpc.py:NmpcController.solve": "the warm start, the call and the checks of one "
     "solve, to be split with the NMPC's next step (issue 24)",
-    "deploy/bench/vc_runner.py:run_scenario": "the catalogue run with its new event-driven and "
-    "datalog options, to be split (issue 24)",
 }
 """``path:qualified name`` → why it may be longer than the rule allows."""
 

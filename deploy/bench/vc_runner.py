@@ -353,36 +353,14 @@ def run_scenario(
     boards = [_hardware(scenario) for _ in range(replicas)]
     vcs = [VitalControl(hardware, config=scenario.config) for hardware in boards]
     executive = Executive(SimClock())
-    pair: TwoOutOfTwo | None = None
-    if replicas == 2:
-        pair = TwoOutOfTwo(
-            (vcs[0], vcs[1]),
-            valves=EmergencyBrakeValves(
-                venting_s=scenario.full_eb_delay_s,
-                faults=[f for f in scenario.faults if isinstance(f, PipeFault)],
-            ),
-        )
-        pair.register(executive, event_driven=event_driven)
-    else:
-        vcs[0].register(executive, event_driven=event_driven)
+    pair = _register_vcs(scenario, vcs, executive, event_driven=event_driven)
     surroundings = _Surroundings(
         scenario, boards, pair.valves if pair else boards[0].valves, fusion_seed=seed
     )
     executive.add_task(
         "surroundings", surroundings.step_ns, period_s=STEP_S, priority=SURROUNDINGS_PRIORITY
     )
-    for index, hardware in enumerate(boards):
-        responder = AtoObResponder(
-            hardware.request_link,
-            hardware.response_link,
-            sequence_modulo=scenario.config.sequence_modulo,
-            auto_confirm_rearm=scenario.auto_confirm_rearm,
-            actions=scenario.operator,
-            faults=[f for f in scenario.faults if isinstance(f, ResponderFault)],
-        )
-        executive.add_task(
-            f"ato_ob{index}", responder.step_ns, period_s=STEP_S, priority=ATO_OB_PRIORITY
-        )
+    _add_responders(scenario, boards, executive)
     ticks: list[tuple[object, ...]] = []
     if record_ticks:
         executive.add_task(
@@ -397,6 +375,44 @@ def run_scenario(
     result = _result(scenario, vcs[0], surroundings, pair=pair)
     skipped = sum(vc.task_b.quiet.skipped + vc.task_c.quiet.skipped for vc in vcs)
     return replace(result, ticks=tuple(ticks), skipped_cycles=skipped)
+
+
+def _register_vcs(
+    scenario: Scenario,
+    vcs: Sequence[VitalControl],
+    executive: Executive,
+    *,
+    event_driven: bool | None,
+) -> TwoOutOfTwo | None:
+    """The one VC's tasks on the executive, or the 2-out-of-2 pair's (returned)."""
+    if len(vcs) == 1:
+        vcs[0].register(executive, event_driven=event_driven)
+        return None
+    pair = TwoOutOfTwo(
+        (vcs[0], vcs[1]),
+        valves=EmergencyBrakeValves(
+            venting_s=scenario.full_eb_delay_s,
+            faults=[f for f in scenario.faults if isinstance(f, PipeFault)],
+        ),
+    )
+    pair.register(executive, event_driven=event_driven)
+    return pair
+
+
+def _add_responders(scenario: Scenario, boards: Sequence[VcHardware], executive: Executive) -> None:
+    """An ATO-OB answering each board's VC, with the scenario's operator and faults."""
+    for index, hardware in enumerate(boards):
+        responder = AtoObResponder(
+            hardware.request_link,
+            hardware.response_link,
+            sequence_modulo=scenario.config.sequence_modulo,
+            auto_confirm_rearm=scenario.auto_confirm_rearm,
+            actions=scenario.operator,
+            faults=[f for f in scenario.faults if isinstance(f, ResponderFault)],
+        )
+        executive.add_task(
+            f"ato_ob{index}", responder.step_ns, period_s=STEP_S, priority=ATO_OB_PRIORITY
+        )
 
 
 def _tick(

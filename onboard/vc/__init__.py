@@ -51,6 +51,11 @@ from onboard.vc.datalog import (
     DatalogReplay,
     read_datalog,
 )
+from onboard.vc.exchange_check import (
+    CONFIRMED_SECTIONS,
+    ExchangeCheck,
+    Findings,
+)
 from onboard.vc.fsm import (
     ALL_TABLES,
     TASK_A_TRANSITIONS,
@@ -154,7 +159,6 @@ from onboard.vc.task_a import (
     TaskA,
 )
 from onboard.vc.task_b import (
-    CONFIRMED_SECTIONS,
     TaskB,
 )
 from onboard.vc.task_c import (
@@ -167,6 +171,8 @@ __all__ = [
     "VcFaults",
     "VcInstallation",
     "CONFIRMED_SECTIONS",
+    "ExchangeCheck",
+    "Findings",
     "DATALOG_PRIORITY",
     "DECAY_CONDITIONS",
     "FRAME_NUMBER_MODULO",

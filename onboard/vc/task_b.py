@@ -7,7 +7,8 @@ Each cycle Task B
    number, arrive within the 40 ms + 4 ms window, carry exactly the expected sequence numbers
    (:func:`~onboard.vc.messages.expected_response_number`) and the status OK; it reads the
    operator's answers (EB request, vigilance, ETCS and rearm confirmations) from valid
-   responses only;
+   responses only (:class:`~onboard.vc.exchange_check.ExchangeCheck` keeps the
+   outstanding requests and the confirmations);
 3. checks the deadlines: a request not answered within the window (vitality), a vigilance
    request not confirmed within its timeout;
 4. updates the tachometer odometry (:mod:`onboard.vc.odometry`) and re-reads the EB and ETCS
@@ -22,10 +23,10 @@ The flag stays up until the hazard has gone with the train at standstill and the
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 
 from onboard.etcs.balises import TelegramHeader
-from onboard.vc.config import TIME_TOLERANCE_S, VcConfig
+from onboard.vc.config import VcConfig
+from onboard.vc.exchange_check import ExchangeCheck, Findings
 from onboard.vc.fsm import (
     TASK_B_TRANSITIONS,
     BrakeState,
@@ -46,35 +47,18 @@ from onboard.vc.ipc import (
 from onboard.vc.link import FaultyLink
 from onboard.vc.messages import (
     DECAY_CONDITIONS,
-    SECTIONS,
     AtoObResponse,
-    AtoObStatus,
     DecayReason,
     EbCondition,
     Section,
     VcRequest,
-    expected_response_number,
 )
 from onboard.vc.odometry import OdometryEstimate, TachometerOdometry
 from onboard.vc.quiet import QuietCycles
 
-__all__ = ["CONFIRMED_SECTIONS", "TaskB"]
-
-CONFIRMED_SECTIONS = (
-    Section.OPERATOR_VIGILANCE,
-    Section.ETCS_ISOLATION_CONFIRMATION,
-    Section.ETCS_INSERTION_CONFIRMATION,
-    Section.EB_REARM_CONFIRMATION,
-)
-"""The standing sections whose answer is a confirmation Task B passes on."""
+__all__ = ["TaskB"]
 
 _C = EbCondition
-
-
-@dataclass(frozen=True, slots=True)
-class _Outstanding:
-    request: VcRequest
-    deadline_s: float
 
 
 class TaskB:
@@ -127,10 +111,7 @@ class TaskB:
         self._read_etcs_inserted = read_etcs_inserted
         self._actuation = actuation
         self._odometry = TachometerOdometry(config, start_s=start_s)
-        self._outstanding: dict[int, _Outstanding] = {}
-        self._current: dict[Section, int | None] = dict.fromkeys(CONFIRMED_SECTIONS)
-        self._confirmed: dict[Section, int | None] = dict.fromkeys(CONFIRMED_SECTIONS)
-        self._vigilance_deadline_s: float | None = None
+        self._exchange = ExchangeCheck(config)
         self._isolated_since_s: float | None = None
         self._previous_live: frozenset[EbCondition] = frozenset()
         self._eb_conditions: set[EbCondition] = set()
@@ -140,9 +121,8 @@ class TaskB:
         self._eb_conditions_published: frozenset[EbCondition] = frozenset()
         self._decay_reasons_published: tuple[DecayReason, ...] = ()
         self._last_balise_header: TelegramHeader | None = None
-        # Conditions found this cycle, with their evidence time.
-        self._found: dict[EbCondition, float] = {}
-        self._found_decays: list[tuple[DecayReason, float]] = []
+        self._found = Findings()
+        """The conditions and decay reasons found this cycle, with their evidence time."""
         self.quiet = QuietCycles()
         """Skips the cycles that cannot change anything (lockstep only: :mod:`onboard.vc.quiet`)."""
         # What the last full cycle read, for the quiet cycles' check.
@@ -152,79 +132,6 @@ class TaskB:
         self._read_released = False
         self._read_brake_state: BrakeState | None = None
         self._fused_stale = True
-
-    # -- requests and responses ------------------------------------------------------------
-
-    def _register(self, request: VcRequest) -> None:
-        modulo = self.config.sequence_modulo
-        vitality = request.section(Section.ATO_VITALITY).sequence_number
-        deadline_s = request.sent_s + self.config.exchange_window_s
-        self._outstanding[(vitality + 1) % modulo] = _Outstanding(request, deadline_s)
-        for section in CONFIRMED_SECTIONS:
-            item = request.section(section)
-            number = item.sequence_number if item.request_flag else None
-            if number != self._current[section]:
-                self._confirmed[section] = None
-            self._current[section] = number
-        vigilance = self._current[Section.OPERATOR_VIGILANCE]
-        if vigilance is None:
-            self._vigilance_deadline_s = None
-        elif self._confirmed[Section.OPERATOR_VIGILANCE] is None and (
-            self._vigilance_deadline_s is None
-        ):
-            self._vigilance_deadline_s = request.sent_s + self.config.vigilance_timeout_s
-
-    def _decay(self, reason: DecayReason, condition: EbCondition, evidence_s: float) -> None:
-        self._found_decays.append((reason, evidence_s))
-        self._found.setdefault(condition, evidence_s)
-
-    def _check_response(self, delivery: Delivery[AtoObResponse], now_s: float) -> None:
-        response, arrived_s = delivery.message, delivery.arrived_s
-        vitality = response.section(Section.ATO_VITALITY).sequence_number
-        outstanding = self._outstanding.pop(vitality, None)
-        if outstanding is None:
-            # A number no outstanding request expects: stale, replayed or corrupted.
-            self._decay(DecayReason.RESPONSE_NOT_VALID, _C.RESPONSE_NOT_VALID, arrived_s)
-            return
-        if now_s > outstanding.deadline_s + TIME_TOLERANCE_S:
-            self._decay(
-                DecayReason.VITALITY_TIMEOUT, _C.CONFIRMATION_TIMEOUT, outstanding.deadline_s
-            )
-            return
-        request = outstanding.request
-        modulo = self.config.sequence_modulo
-        for section in SECTIONS:
-            expected = expected_response_number(request.section(section), modulo)
-            if response.section(section).sequence_number != expected:
-                self._decay(DecayReason.RESPONSE_NOT_VALID, _C.RESPONSE_NOT_VALID, arrived_s)
-                return
-        if response.status is AtoObStatus.FAIL:
-            self._decay(DecayReason.ATO_OB_FAIL, _C.ATO_OB_FAIL, arrived_s)
-        eb_release = Section.EB_RELEASE_CONFIRMATION
-        if request.section(eb_release).request_flag and response.section(eb_release).answer:
-            self._found.setdefault(_C.OPERATOR_REQUEST, arrived_s)
-        for section in CONFIRMED_SECTIONS:
-            asked = request.section(section)
-            if asked.request_flag and response.section(section).answer:
-                self._confirmed[section] = asked.sequence_number
-                if section is Section.OPERATOR_VIGILANCE:
-                    self._vigilance_deadline_s = None
-
-    def _check_deadlines(self, now_s: float) -> None:
-        overdue = [
-            (key, outstanding)
-            for key, outstanding in self._outstanding.items()
-            if now_s > outstanding.deadline_s + TIME_TOLERANCE_S
-        ]
-        for key, outstanding in overdue:
-            del self._outstanding[key]
-            self._decay(
-                DecayReason.VITALITY_TIMEOUT, _C.CONFIRMATION_TIMEOUT, outstanding.deadline_s
-            )
-        deadline_s = self._vigilance_deadline_s
-        if deadline_s is not None and now_s > deadline_s + TIME_TOLERANCE_S:
-            self._vigilance_deadline_s = None
-            self._decay(DecayReason.VIGILANCE_TIMEOUT, _C.CONFIRMATION_TIMEOUT, deadline_s)
 
     # -- odometry conditions ---------------------------------------------------------------
 
@@ -240,12 +147,12 @@ class TaskB:
         fused = self._fresh_fused_speed(now_s)
         if not odometry.efficient:
             evidence_s = max(since_s, odometry.not_efficient_since_s or since_s)
-            self._found.setdefault(_C.ODOMETRY_NOT_EFFICIENT, evidence_s)
+            self._found.note(_C.ODOMETRY_NOT_EFFICIENT, evidence_s)
         elif (odometry.speed_mps or 0.0) > limit:
             evidence_s = max(since_s, odometry.speed_updated_s or since_s)
-            self._found.setdefault(_C.OVERSPEED_ETCS_ISOLATED, evidence_s)
+            self._found.note(_C.OVERSPEED_ETCS_ISOLATED, evidence_s)
         elif fused is not None and fused.message + self.config.fused_speed_margin_mps > limit:
-            self._found.setdefault(_C.OVERSPEED_ETCS_ISOLATED, max(since_s, fused.arrived_s))
+            self._found.note(_C.OVERSPEED_ETCS_ISOLATED, max(since_s, fused.arrived_s))
         return True
 
     def _fresh_fused_speed(self, now_s: float) -> Delivery[float] | None:
@@ -271,15 +178,15 @@ class TaskB:
             status = SupervisionStatus._make((now_s, *last[1:]))  # a third of _replace's time
             self.status.post(status)
             return status
-        self._found = {}
-        self._found_decays = []
+        found = self._found = Findings()
+        exchange = self._exchange
         requests = self._requests_sent.take_all()
         for request in requests:
-            self._register(request)
+            exchange.register(request)
         responses = self._response_link.receive(now_s)
         for delivery in responses:
-            self._check_response(delivery, now_s)
-        self._check_deadlines(now_s)
+            exchange.check_response(delivery, now_s, found)
+        exchange.check_deadlines(now_s, found)
         frames = self._tachometer_frames.take_all()
         odometry = self._odometry.update(now_s, frames)
         self._took_input = bool(requests or responses or frames)
@@ -334,9 +241,7 @@ class TaskB:
         self._fused_stale = (
             fused is None or now_s - fused.arrived_s > self.config.fused_speed_timeout_s
         )
-        thresholds = [o.deadline_s + TIME_TOLERANCE_S for o in self._outstanding.values()]
-        if self._vigilance_deadline_s is not None:
-            thresholds.append(self._vigilance_deadline_s + TIME_TOLERANCE_S)
+        thresholds = self._exchange.thresholds_s()
         thresholds.append(self._odometry.timeout_threshold_s())
         self.quiet.after_full_cycle(
             now_s, self._fingerprint(status), took_input=self._took_input, thresholds=thresholds
@@ -351,10 +256,7 @@ class TaskB:
             len(self.events),
             self._fused,
             self._odometry.state_key(),
-            tuple(self._outstanding.items()),
-            tuple(self._current.values()),
-            tuple(self._confirmed.values()),
-            self._vigilance_deadline_s,
+            self._exchange.state_key(),
             self._isolated_since_s,
             self._previous_live,
             frozenset(self._eb_conditions),
@@ -363,9 +265,10 @@ class TaskB:
         )
 
     def _record(self, now_s: float) -> None:
-        if not (self._found or self._found_decays or self._previous_live):
+        found = self._found
+        if not (found.conditions or found.decays or self._previous_live):
             return  # a quiet cycle after a quiet one: no event, and nothing is live
-        live = frozenset(self._found)
+        live = frozenset(found.conditions)
         for condition in sorted(live - self._previous_live):
             self.events.append(
                 VcEvent(
@@ -373,10 +276,10 @@ class TaskB:
                     task="B",
                     kind=VcEventKind.EB_CONDITION,
                     detail=f"{int(condition)} {condition.name.lower()}",
-                    evidence_s=self._found[condition],
+                    evidence_s=found.conditions[condition],
                 )
             )
-        for reason, evidence_s in self._found_decays:
+        for reason, evidence_s in found.decays:
             if reason not in self._decay_reasons:
                 if not self._decay_reasons:
                     self.events.append(
@@ -417,12 +320,7 @@ class TaskB:
     def _publish(
         self, now_s: float, odometry: OdometryEstimate, isolated: bool
     ) -> SupervisionStatus:
-        confirmed, current = self._confirmed, self._current
-
-        def number(section: Section) -> int | None:
-            value = confirmed[section]
-            return value if value == current[section] else None
-
+        number = self._exchange.confirmed_number
         state = self.fsm.state
         decay_reasons = self._decay_reasons
         if len(decay_reasons) != len(self._decay_reasons_published):
