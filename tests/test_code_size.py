@@ -17,12 +17,7 @@ PACKAGES = ("protocol", "trackdb", "onboard", "trackside", "deploy")
 MAX_CLASS_LINES = 300
 MAX_FUNCTION_LINES = 60
 
-EXCEPTIONS: dict[str, str] = {
-    "onboard/adf/nmpc.py:NmpcController._build": "the stage-by-stage NLP in one place, to be "
-    "split with the NMPC's next step (issue 24)",
-    "onboard/adf/nmpc.py:NmpcController.solve": "the warm start, the call and the checks of one "
-    "solve, to be split with the NMPC's next step (issue 24)",
-}
+EXCEPTIONS: dict[str, str] = {}
 """``path:qualified name`` → why it may be longer than the rule allows."""
 
 

@@ -236,17 +236,21 @@ class NmpcController:
             "g": ca.vertcat(*constraints),
             "p": parameters,
         }
+        bounds = {**self._variable_bounds(), "lbg": lower, "ubg": upper}
+        return problem, {key: np.array(values, dtype=float) for key, values in bounds.items()}
+
+    def _variable_bounds(self) -> dict[str, list[float]]:
+        """The variables' bounds, [x0, Δu0, ..., x_N]: speed within the predicted range, the
+        forces within the vehicle's, the demand's increment within a step."""
+        c, m, n = self.config, self.model, self.config.horizon_steps
         forces = (-m.max_brake_force_n / KN, m.max_traction_force_n / KN)
         state_low = [-ca.inf, c.min_predicted_speed_mps, forces[0], forces[0]]
         state_high = [ca.inf, MAX_SPEED_MPS, forces[1], forces[1]]
         step_kn = c.max_force_step_n / KN
-        bounds = {
+        return {
             "lbx": (state_low + [-step_kn]) * n + state_low,
             "ubx": (state_high + [step_kn]) * n + state_high,
-            "lbg": lower,
-            "ubg": upper,
         }
-        return problem, {key: np.array(values, dtype=float) for key, values in bounds.items()}
 
     def _stage_bounds(self, reference: NmpcReference) -> FloatArray:
         """The NLP's upper bounds of the variables with each stage's ceiling as the upper bound
@@ -296,28 +300,11 @@ class NmpcController:
             self._guess = None
         self._reference = reference
         started = time.perf_counter()
-        try:
-            solver = self._solver
-            if self._guess is None:
-                self.stats.cold_starts += 1
-                solver = self._cold_solver
-            guess = self._initial_guess(state, reference.track_force_n / KN)
-            lam_x: FloatArray | float = 0.0
-            lam_g: FloatArray | float = 0.0
-            if solver is self._solver and self._multipliers is not None:
-                lam_x = self._multipliers[0][self._shift_bounds]
-                lam_g = self._multipliers[1][self._shift_constraints]
-            solution = solver(x0=guess, p=parameters, ubx=upper, lam_x0=lam_x, lam_g0=lam_g)
-            success = solver.success
-            if not success and self._feasible(solver):
-                self.stats.not_converged += 1
-                success = True
-        except RuntimeError:
-            solution, success = None, False
+        solution = self._call_solver(state, parameters, upper, reference.track_force_n / KN)
         elapsed = time.perf_counter() - started
         self.stats.solves += 1
         self.stats.solve_times_s.append(elapsed)
-        if not success or solution is None:
+        if solution is None:
             return self._fallback(elapsed, speed_mps, reference)
         values = solution["x"].copy()
         states = values[self._state_index]
@@ -333,6 +320,32 @@ class NmpcController:
             predicted_speed_mps=states[1:, 1],
             predicted_force_n=forces_n,
         )
+
+    def _call_solver(
+        self, state: FloatArray, parameters: FloatArray, upper: FloatArray, track_kn: FloatArray
+    ) -> dict[str, Any] | None:
+        """The SQP from the warm start (the cold solver from a rolled-out guess when there is
+        none); its solution, or None when it failed and its last iterate is not feasible."""
+        solver = self._solver
+        if self._guess is None:
+            self.stats.cold_starts += 1
+            solver = self._cold_solver
+        try:
+            guess = self._initial_guess(state, track_kn)
+            lam_x: FloatArray | float = 0.0
+            lam_g: FloatArray | float = 0.0
+            if solver is self._solver and self._multipliers is not None:
+                lam_x = self._multipliers[0][self._shift_bounds]
+                lam_g = self._multipliers[1][self._shift_constraints]
+            solution = solver(x0=guess, p=parameters, ubx=upper, lam_x0=lam_x, lam_g0=lam_g)
+        except RuntimeError:
+            return None
+        if solver.success:
+            return solution
+        if self._feasible(solver):
+            self.stats.not_converged += 1
+            return solution
+        return None
 
     def _jumped(self, reference: NmpcReference) -> bool:
         """Whether the reference or the ceiling moved by more than ``jump_mps`` against the
