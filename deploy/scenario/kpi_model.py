@@ -31,11 +31,13 @@ from pydantic import (
 
 __all__ = [
     "ActionRecord",
+    "EnergyCertificate",
     "EoaStop",
     "EstimateError",
     "ExpectationResult",
     "JourneyReport",
     "Kpis",
+    "LegEnergy",
     "OdometryInterval",
     "ServedStop",
     "SessionOutage",
@@ -201,6 +203,42 @@ class ExpectationResult(_KpiModel):
     detail: str = Field(description="What was found.")
 
 
+class LegEnergy(_KpiModel):
+    """One leg of the journey as driven, its energies side by side (the plant's truth)."""
+
+    stop: str = Field(description="The timing point the leg ends at.")
+    departure_s: float = Field(description="When the train left its standstill [s].")
+    arrival_s: float = Field(description="When it stopped at ``stop`` [s].")
+    distance_m: float = Field(description="True distance run [m].")
+    driven_kwh: float = Field(description="Traction energy at the wheel the plant drew [kWh].")
+    plan_kwh: float = Field(
+        description="Energy of the reference the ADF followed over the leg, on the onboard's "
+        "model [kWh]."
+    )
+    optimum_kwh: float | None = Field(
+        description="The offline optimum for the same distance from the same departure to the "
+        "same arrival, on the plant's true parameters [kWh]; null when none was found."
+    )
+    driven_vs_optimum: float | None = Field(description="driven_kwh / optimum_kwh [1].")
+
+
+class EnergyCertificate(_KpiModel):
+    """The journey's traction energy against the best possible (docs/scenarios.md)."""
+
+    driven_kwh: float = Field(description="Traction energy at the wheel over the legs [kWh].")
+    regenerated_kwh: float | None = Field(
+        description="Energy recovered by electric braking over the run [kWh]; null on a plant "
+        "without electric braking (the point mass)."
+    )
+    plan_kwh: float = Field(description="The legs' plan energies, summed [kWh].")
+    optimum_kwh: float | None = Field(
+        description="The legs' offline optima, summed [kWh]; null if one is missing."
+    )
+    driven_vs_optimum: float | None = Field(description="driven_kwh / optimum_kwh [1].")
+    plan_vs_optimum: float | None = Field(description="plan_kwh / optimum_kwh [1].")
+    legs: list[LegEnergy] = Field(description="Each leg driven, in order.")
+
+
 class Kpis(_KpiModel):
     """The KPIs of one run: ``kpis.json`` (docs/scenarios.md, "What a run writes")."""
 
@@ -337,6 +375,17 @@ class Kpis(_KpiModel):
     )
     actions: list[ActionRecord] | None = Field(
         default=None, description="Each action with its time and the vehicle's answer."
+    )
+    energy: EnergyCertificate | None = Field(
+        default=None,
+        description="The journey's energy certificate: driven, plan and optimum; null without "
+        "a journey driven.",
+    )
+    energy_plan_fallbacks: int | None = Field(
+        default=None,
+        ge=0,
+        description="Legs of the journey planned without the energy optimiser (the plain "
+        "LSPB); null without a journey.",
     )
     journey_reports: list[JourneyReport] | None = Field(
         default=None,

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from deploy.scenario.energy_certificate import OptimumProfile, run_energy
 from deploy.scenario.invariants import invariant_expectations
 from deploy.scenario.kpi_model import (
     ActionRecord,
@@ -45,6 +46,8 @@ __all__ = ["RunOutcome", "build_outcome"]
 class RunOutcome:
     kpis: Kpis
     columns: dict[str, np.ndarray] = field(default_factory=dict)
+    optimum_profiles: tuple[OptimumProfile, ...] = ()
+    """Each leg's offline optimum, for the report (``deploy.scenario.energy_certificate``)."""
 
     @property
     def passed(self) -> bool:
@@ -71,6 +74,7 @@ def build_outcome(ctx: RunContext, link: ZenohLinkFault | None) -> RunOutcome:
         position_errors_m=columns["estimated_position_m"] - columns["position_m"],
         vc_interventions=recorder.vc_interventions,
     )
+    energy = run_energy(ctx, columns)
     kpis = Kpis(
         **train,
         **_run_kpis(ctx, link),
@@ -81,6 +85,8 @@ def build_outcome(ctx: RunContext, link: ZenohLinkFault | None) -> RunOutcome:
         ),
         wall_time_breakdown=_wall_time_breakdown(node.executive.stats, ctx.lockstep_wall_s),
         actions=[ActionRecord(**vars(item)) for item in ctx.actions],
+        energy=energy.certificate,
+        energy_plan_fallbacks=energy.fallbacks,
         # The verdict is _judge's, the wall clock run_scenario's once the run is over.
         passed=False,
         expectations=[],
@@ -89,7 +95,7 @@ def build_outcome(ctx: RunContext, link: ZenohLinkFault | None) -> RunOutcome:
     )
     failures = [ExpectationResult(name=text, ok=False, detail=text) for text in ctx.failures]
     _judge(kpis, ctx.spec, failures)
-    return RunOutcome(kpis, columns)
+    return RunOutcome(kpis, columns, energy.profiles)
 
 
 def _judge(kpis: Kpis, spec: ScenarioSpec, failures: Sequence[ExpectationResult] = ()) -> None:

@@ -2,8 +2,9 @@
 
 The plots are those of seed 000's field test (figs. 9–10: speed and its reference, the speed
 error, the traction effort) and the run's own: the localisation error, the battery's state of
-charge and the traction energy, and a timeline of the ETCS mode, the ATO-OB state and the
-supervisory controller's state.
+charge and the traction energy, a timeline of the ETCS mode, the ATO-OB state and the
+supervisory controller's state, and each leg's driven speed per distance beside the offline
+optimum's, with the energy certificate's numbers (``deploy.scenario.energy_certificate``).
 """
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from deploy.scenario.kpi_model import Kpis
+from deploy.scenario.energy_certificate import OptimumProfile
+from deploy.scenario.kpi_model import EnergyCertificate, Kpis
 from protocol.units import J_PER_KWH, MPS_PER_KMH
 
 __all__ = ["render_report"]
@@ -127,21 +129,101 @@ def _timeline_figure(c: Mapping[str, np.ndarray]) -> Figure:
     return figure
 
 
+def _optimum_figure(
+    c: Mapping[str, np.ndarray], certificate: EnergyCertificate, profiles: Sequence[OptimumProfile]
+) -> Figure:
+    """Each leg's driven speed (truth) per distance from its departure, beside its optimum."""
+    legs = certificate.legs
+    figure, axes = plt.subplots(len(legs), 1, figsize=(10, 2.6 * len(legs)), squeeze=False)
+    optima = {profile.name: profile for profile in profiles}
+    for row, leg in zip(axes[:, 0], legs, strict=True):
+        inside = (c["time_s"] >= leg.departure_s) & (c["time_s"] <= leg.arrival_s)
+        start_m = float(np.interp(leg.departure_s, c["time_s"], c["position_m"]))
+        row.plot(
+            c["position_m"][inside] - start_m, c["speed_mps"][inside] / MPS_PER_KMH, label="driven"
+        )
+        optimum = optima.get(leg.stop)
+        if optimum is not None:
+            row.plot(
+                optimum.distances_m, optimum.speeds_mps / MPS_PER_KMH, "--", label="optimum (truth)"
+            )
+        row.set_ylabel("km/h")
+        row.legend(loc="upper right", fontsize=8)
+        row.set_title(f"Leg to {leg.stop}: {_leg_energy_text(leg.driven_kwh, leg.optimum_kwh)}")
+    axes[-1, 0].set_xlabel("distance from the departure [m]")
+    return figure
+
+
+def _leg_energy_text(driven_kwh: float, optimum_kwh: float | None) -> str:
+    if optimum_kwh is None:
+        return f"driven {driven_kwh:.3f} kWh, no optimum"
+    return (
+        f"driven {driven_kwh:.3f} kWh, optimum {optimum_kwh:.3f} kWh "
+        f"({(driven_kwh / optimum_kwh - 1.0) * 100.0:+.1f} %)"
+    )
+
+
+def _energy_section(certificate: EnergyCertificate | None, fallbacks: int | None) -> str:
+    if certificate is None:
+        return "<p>No journey driven: no energy certificate.</p>"
+
+    def kwh(value: float | None) -> str:
+        return "–" if value is None else f"{value:.4f}"
+
+    def ratio(value: float | None) -> str:
+        return "–" if value is None else f"{value:.3f}"
+
+    rows = "".join(
+        f"<tr><td>{html.escape(leg.stop)}</td><td>{leg.departure_s:.1f}</td>"
+        f"<td>{leg.arrival_s:.1f}</td><td>{leg.distance_m:.1f}</td><td>{kwh(leg.driven_kwh)}</td>"
+        f"<td>{kwh(leg.plan_kwh)}</td><td>{kwh(leg.optimum_kwh)}</td>"
+        f"<td>{ratio(leg.driven_vs_optimum)}</td></tr>"
+        for leg in certificate.legs
+    )
+    c = certificate
+    total = (
+        f"<tr><th>journey</th><td></td><td></td><td></td><th>{kwh(c.driven_kwh)}</th>"
+        f"<th>{kwh(c.plan_kwh)}</th><th>{kwh(c.optimum_kwh)}</th>"
+        f"<th>{ratio(c.driven_vs_optimum)}</th></tr>"
+    )
+    return (
+        "<table><tr><th>leg to</th><th>departure [s]</th><th>arrival [s]</th>"
+        "<th>distance [m]</th><th>driven [kWh]</th><th>plan [kWh]</th><th>optimum [kWh]</th>"
+        f"<th>driven / optimum</th></tr>{rows}{total}</table>"
+        f"<p>Plan / optimum {ratio(c.plan_vs_optimum)}; regenerated {kwh(c.regenerated_kwh)} "
+        f"kWh; legs planned without the energy optimiser: {fallbacks}.</p>"
+    )
+
+
 def _table(rows: Sequence[tuple[str, str]]) -> str:
     body = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
     return f"<table>{body}</table>"
 
 
-def render_report(kpis: Kpis, columns: Mapping[str, np.ndarray]) -> str:
-    """The report's HTML."""
-    figures: list[str] = []
-    if columns["time_s"].size:
-        figures = [
-            _png(_speed_figure(columns)),
-            _png(_position_figure(columns)),
-            _png(_odometry_figure(columns)),
-            _png(_timeline_figure(columns)),
-        ]
+def _figures(
+    kpis: Kpis, columns: Mapping[str, np.ndarray], optima: Sequence[OptimumProfile]
+) -> tuple[list[str], str]:
+    """The plots as PNG (base64), and the energy plot's image element ("" without legs)."""
+    if not columns["time_s"].size:
+        return [], ""
+    figures = [
+        _png(_speed_figure(columns)),
+        _png(_position_figure(columns)),
+        _png(_odometry_figure(columns)),
+        _png(_timeline_figure(columns)),
+    ]
+    if kpis.energy is None or not kpis.energy.legs:
+        return figures, ""
+    png = _png(_optimum_figure(columns, kpis.energy, optima))
+    return figures, f'<img alt="driven and optimal speed" src="data:image/png;base64,{png}">'
+
+
+def render_report(
+    kpis: Kpis, columns: Mapping[str, np.ndarray], optima: Sequence[OptimumProfile] = ()
+) -> str:
+    """The report's HTML; ``optima``: each leg's offline optimum, for the energy plot."""
+    figures, energy_figure = _figures(kpis, columns, optima)
+    energy = _energy_section(kpis.energy, kpis.energy_plan_fallbacks)
     expectations = "".join(
         f'<tr class="{"ok" if e.ok else "fail"}"><td>{"✔" if e.ok else "✘"}</td>'
         f"<td>{html.escape(e.name)}</td><td>{html.escape(e.detail)}</td></tr>"
@@ -157,7 +239,7 @@ def render_report(kpis: Kpis, columns: Mapping[str, np.ndarray]) -> str:
     scalars = [
         (k, json.dumps(v))
         for k, v in written.items()
-        if k not in ("stops", "expectations", "vc_interventions")
+        if k not in ("stops", "expectations", "vc_interventions", "energy")
     ]
     verdict = "passed" if kpis.passed else "FAILED"
     interventions = html.escape(json.dumps(written["vc_interventions"], indent=1))
@@ -178,6 +260,7 @@ img {{ max-width: 100%; margin: 1em 0; }}
 <h2>Expectations</h2><table>{expectations}</table>
 <h2>Stops</h2><table><tr><th>stop</th><th>planned arrival [s]</th><th>arrival error [s]</th>
 <th>stop error [m]</th><th>ETCS interval [m]</th></tr>{stops}</table>
+<h2>Energy: driven, plan and the offline optimum</h2>{energy}{energy_figure}
 <h2>Plots</h2>{images}
 <h2>KPIs</h2>{_table(scalars)}
 <h2>Vital Control interventions</h2><pre>{interventions}</pre>

@@ -177,7 +177,9 @@ def write_report(outcome: RunOutcome, directory: Path) -> None:
     (directory / "kpis.json").write_text(outcome.kpis.model_dump_json(indent=2), encoding="utf-8")
     if outcome.columns:
         np.savez_compressed(directory / "telemetry.npz", **outcome.columns)  # type: ignore[arg-type]
-        (directory / "report.html").write_text(render_report(outcome.kpis, outcome.columns))
+        (directory / "report.html").write_text(
+            render_report(outcome.kpis, outcome.columns, outcome.optimum_profiles)
+        )
 
 
 # -- the Vital Control catalogue ---------------------------------------------------------------

@@ -51,10 +51,30 @@ def test_bologna_ring_meets_the_field_test_kpis_and_repeats_exactly(tmp_path: Pa
     telemetry = np.load(tmp_path / "first" / "telemetry.npz")
     assert telemetry["speed_mps"].max() == pytest.approx(40 / 3.6, abs=0.5)
     report = (tmp_path / "first" / "report.html").read_text()
-    assert report.count("<img") == 4
+    assert report.count("<img") == 5  # the four plots, and the driven speed beside the optimum
     assert "ETCS interval [m]" in report
+    assert "driven / optimum" in report
+    _check_the_energy_certificate(first)
 
     second = _run(tmp_path / "second")
     for key in WALL_CLOCK:
         first.pop(key), second.pop(key)
     assert first == second
+
+
+def _check_the_energy_certificate(kpis: dict[str, Any]) -> None:
+    """kpis.json's energy block (issue 22): every leg driven, its optimum on the plant's truth
+    found, and no plan beats it (the optimum is the least any run of that leg in that time can
+    take, up to the collocation's grid)."""
+    energy = kpis["energy"]
+    assert kpis["energy_plan_fallbacks"] == 0
+    assert [leg["stop"] for leg in energy["legs"]] == ["east", "south", "north"]
+    optimum = sum(leg["optimum_kwh"] for leg in energy["legs"])
+    assert energy["optimum_kwh"] == pytest.approx(optimum)
+    assert energy["driven_vs_optimum"] == pytest.approx(energy["driven_kwh"] / optimum)
+    assert energy["plan_vs_optimum"] == pytest.approx(energy["plan_kwh"] / optimum)
+    for leg in energy["legs"]:
+        assert leg["driven_kwh"] >= 0.99 * leg["optimum_kwh"]
+    # The journey's traction is the run's but for the remote driving before it.
+    assert 0.0 < energy["driven_kwh"] < kpis["traction_energy_kwh"]
+    assert energy["regenerated_kwh"] is None  # the point mass has no electric braking
