@@ -4,6 +4,14 @@ stands, and handed to the ADF when ATO is engaged.
 A journey profile is accepted only if its ODP can be planned from where the vehicle stands: an
 infeasible leg is a rejection with its reason. A journey planned at acceptance is planned again
 at engagement if the vehicle moved more than :data:`REPLAN_MOVED_M` in between.
+
+At acceptance the Energy Manager (``onboard.energy_manager``) reckons the plan against the
+batteries and the range extender. When the margin is short, the journey is planned again with
+each stop's arrival at the end of its window (T_ARRIVAL_WINDOW, the timing tolerance the
+profile grants): the slower profile, kept when it needs less energy (event
+``energy.slower_profile``). When even that leaves the margin short, the journey is accepted all
+the same and the operator is warned before departure (event ``energy.insufficient``, and the
+status report's ``energy.short``): he decides whether to engage (docs/energy.md).
 """
 
 from __future__ import annotations
@@ -11,12 +19,15 @@ from __future__ import annotations
 from onboard.adf.function import DrivingFunction
 from onboard.adf.journey import JourneyPlan, JourneyStop, plan_journey
 from onboard.adf.odp import InfeasibleLegError
+from onboard.energy_manager import EnergyAssessment, EnergyManager
+from onboard.events import StackEvent
 from onboard.plant.point_mass import PointMassParameters
 from onboard.track_database_manager import TrackDatabaseManager
 from protocol import messages as m
+from protocol.units import J_PER_KWH
 from trackdb import TrackMap
 
-__all__ = ["REPLAN_MOVED_M", "JourneyKeeper"]
+__all__ = ["REPLAN_MOVED_M", "JourneyKeeper", "within_arrival_windows"]
 
 REPLAN_MOVED_M = 1.0
 """A journey planned at acceptance is replanned at engagement if the vehicle moved more [m]."""
@@ -33,20 +44,29 @@ class JourneyKeeper:
         driving: DrivingFunction,
         *,
         energy_plans: bool,
+        energy: EnergyManager | None = None,
     ) -> None:
         self.track_map = track_map
         self.model = model
         self.track_database = track_database
         self.driving = driving
         self.energy_plans = energy_plans
+        self.energy = energy
         self.plan: JourneyPlan | None = None
         self.started = False
+        self.slowed_for_energy = False
+        """The plan uses the arrival windows because the energy margin was short."""
+        self.energy_short = False
+        """Even so the margin was short at acceptance: the operator was warned."""
+        self.events: list[StackEvent] = []
         self._planned_at_m = 0.0
+        self._planned_profile: m.JourneyProfile | None = None
 
     def use_line(self, track_map: TrackMap) -> None:
         """New track data: a journey accepted on the old ones is dropped, not started."""
         self.track_map = track_map
         self.plan, self.started = None, False
+        self.slowed_for_energy = self.energy_short = False
 
     def review(self, profile: m.JourneyProfile, position_m: float) -> tuple[bool, str | None]:
         """Accept a journey profile (reviewed against the track data, then planned from
@@ -59,7 +79,10 @@ class JourneyKeeper:
         except InfeasibleLegError as exc:
             self.track_database.journey = None
             return False, f"infeasible: {exc}"
-        self.plan, self._planned_at_m = plan, position_m
+        self.plan, self._planned_at_m, self._planned_profile = plan, position_m, profile
+        self.slowed_for_energy = self.energy_short = False
+        if self.energy is not None:
+            self._within_energy(self.energy, plan, profile, position_m)
         self.started = False
         self.driving.skipped.clear()
         return True, None
@@ -70,7 +93,7 @@ class JourneyKeeper:
         if self.started or self.plan is None or journey is None:
             return
         if abs(position_m - self._planned_at_m) > REPLAN_MOVED_M:
-            self.plan = self._plan(journey, position_m)
+            self.plan = self._plan(self._planned_profile or journey, position_m)
         self.driving.start_journey(self.plan, now_s, position_m=position_m)
         self.started = True
 
@@ -85,6 +108,51 @@ class JourneyKeeper:
             return tuple(self.plan.stops)
         return None
 
+    def _within_energy(
+        self,
+        energy: EnergyManager,
+        accepted: JourneyPlan,
+        profile: m.JourneyProfile,
+        position_m: float,
+    ) -> None:
+        """The Energy Manager's check of the ``accepted`` plan: the slower profile when the
+        margin is short and that needs less, and the operator warned when it is short even so."""
+        first = energy.assess(accepted.plan)
+        if not first.short:
+            return
+        final, slower = first, within_arrival_windows(profile)
+        if slower is not None:
+            try:
+                plan = self._plan(slower, position_m)
+            except InfeasibleLegError:
+                plan = None
+            second = None if plan is None else energy.assess(plan.plan)
+            if plan is not None and second is not None and _needs_less(second, first):
+                self.plan, self._planned_profile, final = plan, slower, second
+                self.slowed_for_energy = True
+                self._note(
+                    m.EventSeverity.INFO,
+                    "energy.slower_profile",
+                    f"energy margin short at the timetable's pace ({_kwh(first)}): planned "
+                    f"with every arrival at the end of its window ({_kwh(second)})",
+                )
+        if final.short:
+            self.energy_short = True
+            self._note(
+                m.EventSeverity.WARNING,
+                "energy.insufficient",
+                f"the batteries and the range extender cannot finish journey "
+                f"{profile.journey_id} with the reserve ({_kwh(final)}): do not engage",
+            )
+
+    def take_events(self) -> list[StackEvent]:
+        """What the journey keeper noted for the event log since the last call."""
+        events, self.events = self.events, []
+        return events
+
+    def _note(self, severity: m.EventSeverity, code: str, text: str) -> None:
+        self.events.append(StackEvent(severity, code, text))
+
     def _plan(self, profile: m.JourneyProfile, position_m: float) -> JourneyPlan:
         return plan_journey(
             self.track_map,
@@ -93,3 +161,45 @@ class JourneyKeeper:
             start_chainage_m=self.track_map.normalise(position_m),
             energy=self.energy_plans,
         )
+
+
+def within_arrival_windows(profile: m.JourneyProfile) -> m.JourneyProfile | None:
+    """The profile with each timing point's arrival at the end of its window (its
+    ``arrival_tolerance_s``), departures kept where the dwell allows (never before the arrival
+    plus the minimum dwell); None when no point grants a window."""
+    if not any(point.arrival_tolerance_s > 0.0 for point in profile.timing_points):
+        return None
+    points = []
+    for point in profile.timing_points:
+        arrival = point.arrival_time_s + point.arrival_tolerance_s
+        departure = point.departure_time_s
+        if departure is not None:
+            departure = max(departure, arrival + point.minimum_dwell_s)
+        points.append(
+            point.model_copy(
+                update={
+                    "arrival_time_s": arrival,
+                    "arrival_tolerance_s": 0.0,
+                    "departure_time_s": departure,
+                }
+            )
+        )
+    return profile.model_copy(update={"timing_points": tuple(points)})
+
+
+def _needs_less(slower: EnergyAssessment, first: EnergyAssessment) -> bool:
+    if slower.energy_to_go_j is None or first.energy_to_go_j is None:
+        return False
+    return slower.energy_to_go_j < first.energy_to_go_j
+
+
+def _kwh(assessment: EnergyAssessment) -> str:
+    """The reckoning in the operator's units: needed, available, margin [kWh]."""
+    needed = assessment.energy_to_go_j or 0.0
+    available = (assessment.battery_available_j or 0.0) + (
+        assessment.range_extender_available_j or 0.0
+    )
+    return (
+        f"{needed / J_PER_KWH:.2f} kWh needed, {available / J_PER_KWH:.2f} kWh available, "
+        f"margin {(available - needed) / J_PER_KWH:+.2f} kWh"
+    )

@@ -25,6 +25,7 @@ time both are asynchronous.
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
@@ -35,12 +36,14 @@ import numpy as np
 import zenoh
 
 from onboard.commands import CommandDesk
+from onboard.energy_manager import EnergyManagerParameters
 from onboard.events import StackEvent
 from onboard.intake import TracksideIntake
 from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.plant.balise_reader import BaliseReader, BaliseReaderFaults
 from onboard.plant.bogie_parameters import URV_BOGIE_PARAMETERS
 from onboard.plant.marker_reader import StopMarkerReader, StopMarkerReaderFaults
+from onboard.plant.powertrain import PowertrainParameters
 from onboard.plant.sensors import InterfaceModules
 from onboard.plant.vehicle import BogiePlant, SimulatedVehicle
 from onboard.plant.wheel_sensors import WheelSensors, draw_diameter_error
@@ -56,7 +59,7 @@ from onboard.status_report import status_report
 from onboard.track_desk import TrackDataDesk
 from onboard.vc import Datalog, DatalogRecorder, VcConfig
 from onboard.vc.installation import VcFaults, VcInstallation
-from onboard.vcu import vcu_parameters_for
+from onboard.vcu import VcuParameters, vcu_parameters_for
 from onboard.vcu.drive import VcuDrive
 from protocol import messages as m
 from trackdb import TrackMap
@@ -101,6 +104,9 @@ class OnboardSettings:
     """The plant: the point-mass model, or the 10-DOF bogie model behind the VCU."""
     initial_soc: float = 0.9
     """The batteries' state of charge at start (the bogie model's powertrain)."""
+    range_extender_power_w: float | None = None
+    """The range extender's rated power [W], when the vehicle's differs from the URV's 100 kW
+    (0: out of service); the plant, the VCU and the Energy Manager all take it."""
     sensors: SensorSettings = SensorSettings()
     """The emulated sensors, their link to the listener, and their seed. The ATO-OB and the ADF
     drive on the sensor-fusion estimate (interface-modules emulator → link → listener → OBCU
@@ -147,12 +153,9 @@ class OnboardNode:
         self.clock = clock
         self.lockstep = isinstance(clock, SimClock)
         self.executive = Executive(clock)
-        self.plant = _simulated_vehicle(settings, track_map, start_s=clock.now_s)
-        self.vcu = (
-            VcuDrive(vcu_parameters_for(URV_BOGIE_PARAMETERS))
-            if settings.fidelity == "bogie"
-            else None
-        )
+        vcu_parameters, powertrain = _energy_data(settings)
+        self.plant = _simulated_vehicle(settings, track_map, powertrain, start_s=clock.now_s)
+        self.vcu = VcuDrive(vcu_parameters) if settings.fidelity == "bogie" else None
         vital = _vital_control(settings, lambda: _wheel_travel_m(self.plant), start_s=clock.now_s)
         self.sensor_fusion = SensorFusionChain(
             track_map, settings.sensors, start_position_m=settings.start_position_m
@@ -166,6 +169,7 @@ class OnboardNode:
             start_s=clock.now_s,
             energy_plans=settings.energy_plans,
             vital=vital,
+            energy=EnergyManagerParameters.for_vehicle(vcu_parameters, powertrain),
         )
         self.track_database = self.stack.track_database
         self.internal_fault = False
@@ -264,6 +268,7 @@ class OnboardNode:
             wheels, powertrain = plant.wheels, plant.powertrain_reading()
             assert wheels is not None
             assert powertrain is not None
+            self.stack.energy.read(powertrain)
             commands = self.vcu.step(
                 dt_s,
                 demand,
@@ -461,8 +466,30 @@ def _register_vital_control(
     return datalog
 
 
+def _energy_data(settings: OnboardSettings) -> tuple[VcuParameters, PowertrainParameters]:
+    """The VCU's and the powertrain's data of the settings' vehicle: the URV's, with the range
+    extender's rated power if the settings give one (its working points scaled to it)."""
+    vcu, powertrain = vcu_parameters_for(URV_BOGIE_PARAMETERS), PowertrainParameters()
+    power_w = settings.range_extender_power_w
+    if power_w is None:
+        return vcu, powertrain
+    extender = powertrain.range_extender
+    scale = power_w / extender.working_points_w[-1]
+    points = tuple(point * scale for point in extender.working_points_w)
+    return (
+        dataclasses.replace(vcu, range_extender_max_power_w=power_w),
+        dataclasses.replace(
+            powertrain, range_extender=dataclasses.replace(extender, working_points_w=points)
+        ),
+    )
+
+
 def _simulated_vehicle(
-    settings: OnboardSettings, track_map: TrackMap, *, start_s: float
+    settings: OnboardSettings,
+    track_map: TrackMap,
+    powertrain: PowertrainParameters,
+    *,
+    start_s: float,
 ) -> SimulatedVehicle:
     """The dynamics at the settings' fidelity, with the sensors that watch them (their
     randomness from the sensors' seed, one stream each)."""
@@ -474,7 +501,12 @@ def _simulated_vehicle(
     if diameter_error is None:
         diameter_error = draw_diameter_error(wheel_rng)
     dynamics = (
-        BogiePlant(URV_BOGIE_PARAMETERS, position_m=position_m, initial_soc=settings.initial_soc)
+        BogiePlant(
+            URV_BOGIE_PARAMETERS,
+            position_m=position_m,
+            initial_soc=settings.initial_soc,
+            powertrain=powertrain,
+        )
         if settings.fidelity == "bogie"
         else PointMassModel(URV_PARAMETERS, position_m=position_m)
     )

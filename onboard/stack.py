@@ -39,6 +39,7 @@ from onboard.ato_ob import (
     RequestRefusedError,
 )
 from onboard.ato_ob.vital_link import VitalLink
+from onboard.energy_manager import EnergyManager, EnergyManagerParameters
 from onboard.etcs import URV_ODOMETER, EtcsOnboard
 from onboard.events import StackEvent
 from onboard.journey_keeper import JourneyKeeper
@@ -127,6 +128,8 @@ class OnboardStack:
         Plan journeys energy-minimised (else the plain LSPB).
     vital : VcInstallation, optional
         The Vital Control fitted to the vehicle, if any (its tasks run on the node).
+    energy : EnergyManagerParameters, optional
+        The vehicle's energy data for the Energy Manager (default: the URV's).
     """
 
     def __init__(
@@ -140,6 +143,7 @@ class OnboardStack:
         start_s: float = 0.0,
         energy_plans: bool = True,
         vital: VcInstallation | None = None,
+        energy: EnergyManagerParameters | None = None,
     ) -> None:
         self.track_map = track_map
         self.locator = locator
@@ -155,9 +159,11 @@ class OnboardStack:
         self.etcs.start_of_mission(start_s)
         self.controller = AtoObController(start_s=start_s)
         self.driving = DrivingFunction(track_map, model)
+        self.energy = EnergyManager(energy or EnergyManagerParameters.for_urv(), model)
         self.journey = JourneyKeeper(
             track_map, model, self.track_database, self.driving, energy_plans=energy_plans
         )
+        self.journey.energy = self.energy
         self.remote_selected = False
         self.remote_target_mps: float | None = None
         self.force_demand_n = 0.0
@@ -179,7 +185,7 @@ class OnboardStack:
 
     def take_events(self) -> list[StackEvent]:
         """What the stack noted for the event log since the last call, oldest first."""
-        events, self._events = self._events, []
+        events, self._events = [*self._events, *self.journey.take_events()], []
         return events
 
     # -- state ---------------------------------------------------------------------------------

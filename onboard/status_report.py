@@ -1,13 +1,15 @@
-"""The ATO-OB's status report (STR) to the trackside: what the stack knows of the train now."""
+"""The ATO-OB's status report (STR) to the trackside: what the stack knows of the train now,
+with the Energy Manager's reckoning (``onboard.energy_manager``)."""
 
 from __future__ import annotations
 
 import math
 
+from onboard.adf.odp import OdpPlan
 from onboard.stack import OnboardStack
 from protocol import messages as m
 
-__all__ = ["status_report"]
+__all__ = ["energy_status", "status_report"]
 
 
 def status_report(
@@ -62,4 +64,29 @@ def status_report(
         train_hold=driving.hold,
         track_data_version=stack.track_database.onboard_version,
         track_data_pending=track_data_pending,
+        energy=energy_status(stack, now_s),
+    )
+
+
+def energy_status(stack: OnboardStack, now_s: float) -> m.EnergyStatus:
+    """The Energy Manager's reckoning at ``now_s`` [s] on the plan followed (the accepted one
+    before the journey starts), for the status report."""
+    driving, keeper = stack.driving, stack.journey
+    plan: OdpPlan | None
+    if keeper.started and driving.autonomous is not None:
+        plan, journey_s = driving.autonomous.plan, driving.journey_time_s(now_s)
+    else:
+        plan, journey_s = (None if keeper.plan is None else keeper.plan.plan), 0.0
+    reckoning = stack.energy.assess(plan, journey_s)
+    available = None
+    if reckoning.battery_available_j is not None:
+        available = reckoning.battery_available_j + (reckoning.range_extender_available_j or 0.0)
+    return m.EnergyStatus(
+        soc=reckoning.soc,
+        energy_to_go_j=reckoning.energy_to_go_j,
+        energy_available_j=available,
+        margin_j=reckoning.margin_j,
+        range_extender_share=reckoning.range_extender_share,
+        short=keeper.energy_short or reckoning.short,
+        slowed=keeper.slowed_for_energy,
     )

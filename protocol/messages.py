@@ -33,6 +33,7 @@ __all__ = [
     "DisengageCommand",
     "EmergencyBrakeCommand",
     "EtcsMode",
+    "EnergyStatus",
     "Event",
     "EventSeverity",
     "Freshness",
@@ -241,6 +242,36 @@ class VitalControlStatus(BaseModel):
     operator_requests: tuple[OperatorRequest, ...] = Field(default=(), max_length=8)
 
 
+class EnergyStatus(BaseModel):
+    """The Energy Manager's reckoning (seed 000): the energy to finish the journey against what
+    the batteries and the range extender hold, at the DC bus [J]."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    soc: float | None = Field(
+        default=None,
+        ge=0.0,
+        le=1.0,
+        description="The batteries' state of charge, as the BMS reports it [1]",
+    )
+    energy_to_go_j: NonNegativeFloat | None = Field(
+        default=None, description="Energy to finish the journey: traction and auxiliaries [J]"
+    )
+    energy_available_j: NonNegativeFloat | None = Field(
+        default=None, description="What the batteries (above their floor) and the RE can give [J]"
+    )
+    margin_j: FiniteFloat | None = Field(
+        default=None, description="Available − to go [J]; None without a journey or a SOC"
+    )
+    range_extender_share: float | None = Field(
+        default=None, ge=0.0, le=1.0, description="Share of the energy to go the RE gives at most"
+    )
+    short: bool = Field(default=False, description="The margin is under the reserve")
+    slowed: bool = Field(
+        default=False, description="The plan uses the arrival windows to save energy"
+    )
+
+
 class StatusReport(Message):
     """Periodic status of one vehicle (the STR), published at the report interval."""
 
@@ -291,6 +322,9 @@ class StatusReport(Message):
         default=None,
         max_length=128,
         description="A newer version received and verified, waiting for standstill to switch",
+    )
+    energy: EnergyStatus | None = Field(
+        default=None, description="The Energy Manager's reckoning (absent from older onboards)"
     )
 
 

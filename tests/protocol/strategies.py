@@ -48,6 +48,17 @@ vital_control_statuses = st.builds(
     operator_requests=st.lists(operator_requests, max_size=4).map(tuple),
 )
 
+energy_statuses = st.builds(
+    m.EnergyStatus,
+    soc=st.none() | st.floats(0.0, 1.0),
+    energy_to_go_j=st.none() | non_negative,
+    energy_available_j=st.none() | non_negative,
+    margin_j=st.none() | finite,
+    range_extender_share=st.none() | st.floats(0.0, 1.0),
+    short=st.booleans(),
+    slowed=st.booleans(),
+)
+
 status_reports = st.builds(
     m.StatusReport,
     vehicle_id=vehicle_ids,
@@ -78,6 +89,7 @@ status_reports = st.builds(
     vital_control=st.none() | vital_control_statuses,
     track_data_version=st.none() | st.text(min_size=1, max_size=128),
     track_data_pending=st.none() | st.text(min_size=1, max_size=128),
+    energy=st.none() | energy_statuses,
 )
 
 events = st.builds(

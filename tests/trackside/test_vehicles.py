@@ -11,6 +11,8 @@ from protocol import TypedPublisher, declare_liveliness
 from protocol import messages as m
 from protocol.registry import STATUS
 from tests.conftest import wait_for
+from trackside.api.schemas import VehiclePublic
+from trackside.bridge import VehicleSnapshot
 
 
 def _status(vehicle: str, position_m: float) -> m.StatusReport:
@@ -133,3 +135,24 @@ def test_a_confirmation_of_no_known_kind_is_refused(
     )
     assert answer.status_code == 422
     assert "vigilance-ack" in answer.text  # the kinds there are
+
+
+def test_the_energy_manager_s_figures_reach_the_console_s_status() -> None:
+    energy = m.EnergyStatus(
+        soc=0.4758,
+        energy_to_go_j=4.3e6,
+        energy_available_j=5.1e6,
+        margin_j=0.8e6,
+        range_extender_share=0.0,
+        short=False,
+        slowed=True,
+    )
+    report = _status("URV7", 10.0).model_copy(update={"energy": energy})
+    snapshot = VehicleSnapshot("URV7", True, report, 0.1, True)
+    public = VehiclePublic.from_snapshot(snapshot).model_dump(mode="json")
+    assert public["status"]["energy"] == energy.model_dump(mode="json")
+    older = VehiclePublic.from_snapshot(
+        VehicleSnapshot("URV7", True, _status("URV7", 1.0), 0.1, True)
+    )
+    assert older.status is not None
+    assert older.status.energy is None

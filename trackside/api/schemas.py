@@ -122,6 +122,9 @@ class VehicleStatusPublic(BaseModel):
     track_data_pending: str | None = Field(
         default=None, description="A newer version received, waiting for standstill to switch"
     )
+    energy: m.EnergyStatus | None = Field(
+        default=None, description="The Energy Manager's reckoning: SOC, energy to go, margin"
+    )
     age_s: float | None
     rate_ok: bool
 
