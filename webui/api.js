@@ -70,3 +70,12 @@ export function element(tag, attributes = {}, ...children) {
   node.append(...children);
   return node;
 }
+
+// The Energy Manager's figures (StatusReport.energy, SI) in the console's units.
+export const J_PER_KWH = 3.6e6;
+export function socText(energy) {
+  return energy && energy.soc !== null && energy.soc !== undefined ? (100 * energy.soc).toFixed(1) : "–";
+}
+export function kwhText(joules) {
+  return joules === null || joules === undefined ? "–" : (joules / J_PER_KWH).toFixed(2);
+}

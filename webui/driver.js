@@ -1,5 +1,5 @@
 // Driver console for one vehicle: hold it, watch it live, command it, answer its Vital Control.
-import { api, element, errorText, fixed, kmh, leaseEnd, openSocket } from "./api.js";
+import { api, element, errorText, fixed, kmh, kwhText, leaseEnd, openSocket, socText } from "./api.js";
 import { draw, line } from "./charts.js";
 import { TrackStrip } from "./track.js";
 
@@ -242,7 +242,20 @@ export class DriverView {
     setField("journey", s.journey_id || "–");
     setField("next-tp", s.next_timing_point_id || "–");
     setField("train-hold", s.train_hold ? "held" : "no", Boolean(s.train_hold));
+    this.showEnergy(s.energy);
     setField("sim-time", `${fixed(s.sim_time_s)} s`);
+  }
+
+  showEnergy(energy) {
+    const soc = socText(energy);
+    setField("soc", soc === "–" ? soc : `${soc} %`);
+    const toGo = kwhText(energy ? energy.energy_to_go_j : null);
+    setField("energy-to-go", toGo === "–" ? toGo : `${toGo} kWh`);
+    const margin = kwhText(energy ? energy.margin_j : null);
+    let text = margin === "–" ? margin : `${margin} kWh`;
+    if (energy && energy.short) text += " SHORT: do not engage";
+    else if (energy && energy.slowed) text += " (plan slowed within the windows)";
+    setField("energy-margin", text, Boolean(energy && energy.short));
   }
 
   showVitalControl(s) {

@@ -1,5 +1,5 @@
 // Fleet overview: every vehicle seen, pushed over WS /api/v1/ws/fleet.
-import { api, element, fixed, kmh, leaseEnd, openSocket } from "./api.js";
+import { api, element, fixed, kmh, kwhText, leaseEnd, openSocket, socText } from "./api.js";
 
 function cell(text, numeric, field) {
   const td = element("td", { text: text });
@@ -12,6 +12,12 @@ function operatorCell(simulated) {
   const td = element("td", { dataset: { field: "operator" } });
   if (simulated === true) td.append(element("span", { class: "badge warn", text: "simulated" }));
   else td.textContent = simulated === false ? "person" : "–";
+  return td;
+}
+
+function marginCell(energy) {
+  const td = cell(kwhText(energy ? energy.margin_j : null), true, "energy-margin");
+  if (energy && energy.short) td.classList.add("alarm");
   return td;
 }
 
@@ -31,6 +37,9 @@ export function renderFleet(vehicles) {
       cell(s ? s.ato_state : "–"),
       cell(s ? s.etcs_mode : "–"),
       cell(s ? s.sc_state : "–"),
+      cell(socText(s && s.energy), true, "soc"),
+      cell(kwhText(s && s.energy ? s.energy.energy_to_go_j : null), true, "energy-to-go"),
+      marginCell(s && s.energy),
       cell(s ? fixed(s.sim_time_s) : "–", true),
       cell(vehicle.holder || "–", false, "holder"),
       cell(vehicle.holder ? leaseEnd(vehicle.hold_expires_at) : "–", false, "lease"),
