@@ -92,6 +92,15 @@ class OperatorScript:
             if not accepted:
                 ctx.failures.append(f"issue_ma at {now_s:.1f} s refused: {answer.text[:200]}")
             return
+        if action.do == "see_event":
+            assert action.event is not None
+            seen = trackside.wait_for_event(action.event)
+            ctx.log(action.do, seen is not None, seen or f"no {action.event} event", at_s=now_s)
+            if seen is None:
+                ctx.failures.append(
+                    f"see_event at {now_s:.1f} s: no {action.event} event in the trackside's log"
+                )
+            return
         if action.do == "send_journey":
             accepted, detail = trackside.send_journey()
             ctx.log(action.do, accepted, detail, at_s=now_s)

@@ -76,6 +76,9 @@ class VehicleSpec(_Model):
     fidelity: Literal["point_mass", "bogie"] = "point_mass"
     start_position_m: float = Field(default=0.0, ge=0.0, allow_inf_nan=False)
     initial_soc: float = Field(default=0.9, gt=0.0, le=1.0, description="Bogie only: battery SOC")
+    range_extender_kw: float | None = Field(default=None, ge=0.0, le=1000.0, allow_inf_nan=False)
+    """Bogie only: the range extender's rated power [kW] when not the URV's 100 (0: out of
+    service)."""
     vc_replicas: Literal[1, 2] = 2
     """Two VC boards in 2-out-of-2 with the voter and watchdog, as on the seeds' vehicle; 1 for a
     single board (for comparisons)."""
@@ -113,6 +116,7 @@ ActionKind = Literal[
     "isolate_etcs",
     "insert_etcs",
     "issue_ma",
+    "see_event",
 ]
 
 
@@ -129,6 +133,9 @@ class Action(_Model):
     speed_kmh: float | None = Field(default=None, ge=0.0, le=360.0, allow_inf_nan=False)
     end_of_authority_m: float | None = Field(default=None, ge=0.0, allow_inf_nan=False)
     """``issue_ma``: the RBC (REST, admin) issues an MA from the vehicle to this chainage [m]."""
+    event: str | None = Field(default=None, pattern=r"^[a-z0-9_.]{1,64}$")
+    """``see_event``: the operator finds an event of this code in the vehicle's event log at
+    the trackside (the run fails if it is not there)."""
     timeout_s: Seconds = 3600.0
     """The run fails if the action has not happened this long after it was armed [s]."""
 
@@ -145,6 +152,8 @@ class Action(_Model):
             raise ValueError("speed_kmh goes with rd_target_speed, and only with it")
         if (self.do == "issue_ma") != (self.end_of_authority_m is not None):
             raise ValueError("end_of_authority_m goes with issue_ma, and only with it")
+        if (self.do == "see_event") != (self.event is not None):
+            raise ValueError("event goes with see_event, and only with it")
         return self
 
     @property

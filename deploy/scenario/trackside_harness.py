@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import secrets
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +35,10 @@ JOURNEY_TIMEOUT_S = 30.0
 REST route's longest. The vehicle answers at its next commands tick, within the one slice run
 while the journey is sent, so the wait is the wire's and the machine's alone (10 s was too short
 for a generated run on a machine loaded five times over its cores)."""
+EVENT_TIMEOUT_S = 10.0
+"""How long, in wall time, the operator looks for an event in the vehicle's log [s]."""
+EVENT_POLL_S = 0.05
+"""... asking the trackside's REST API this often [s]."""
 SLICE_S = 0.2
 """The slice run while a journey is sent (one control period) [s]."""
 
@@ -197,6 +202,24 @@ class TracksideHarness:
         return self.rest.post(
             f"/api/v1/vehicles/{self.ctx.spec.vehicle.id}/{route}", json=body, headers=self.headers
         )
+
+    def wait_for_event(self, code: str, timeout_s: float = EVENT_TIMEOUT_S) -> str | None:
+        """The text of the vehicle's newest event of ``code`` in the trackside's log, waited
+        for in wall time (events travel reliably but not at once); None if none came."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            answer = self.rest.get(
+                f"/api/v1/vehicles/{self.ctx.spec.vehicle.id}/events",
+                params={"limit": 1000},
+                headers=self.headers,
+            )
+            if answer.status_code == 200:
+                found = [event["text"] for event in answer.json() if event["code"] == code]
+                if found:
+                    return str(found[-1])
+            if time.monotonic() > deadline:
+                return None
+            time.sleep(EVENT_POLL_S)
 
     def send_journey(self) -> tuple[bool, str | None]:
         """Store the journey from where the vehicle stands, and send it through the REST API

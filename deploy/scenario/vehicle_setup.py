@@ -31,6 +31,7 @@ from onboard.vc.installation import VcFaults
 
 __all__ = ["VC_DATALOG", "onboard_settings", "sensor_settings", "vc_faults"]
 
+W_PER_KW = 1000.0
 VC_DATALOG = "vc-datalog.jsonl"
 """The VC's datalog in a run's report directory (``ato vc replay`` reads it)."""
 
@@ -50,6 +51,9 @@ def onboard_settings(
         vc_replicas=vehicle.vc_replicas,
         vc_faults=vc_faults(spec.faults),
         initial_soc=vehicle.initial_soc,
+        range_extender_power_w=(
+            None if vehicle.range_extender_kw is None else vehicle.range_extender_kw * W_PER_KW
+        ),
         vc_datalog=((options.report_dir or scratch) / VC_DATALOG if vehicle.vc_datalog else None),
         sensors=sensor_settings(spec.faults, seed),
     )
