@@ -82,11 +82,16 @@ def energy_status(stack: OnboardStack, now_s: float) -> m.EnergyStatus:
     if reckoning.battery_available_j is not None:
         available = reckoning.battery_available_j + (reckoning.range_extender_available_j or 0.0)
     return m.EnergyStatus(
-        soc=reckoning.soc,
-        energy_to_go_j=reckoning.energy_to_go_j,
-        energy_available_j=available,
-        margin_j=reckoning.margin_j,
-        range_extender_share=reckoning.range_extender_share,
+        soc=_finite(reckoning.soc),
+        energy_to_go_j=_finite(reckoning.energy_to_go_j),
+        energy_available_j=_finite(available),
+        margin_j=_finite(reckoning.margin_j),
+        range_extender_share=_finite(reckoning.range_extender_share),
         short=keeper.energy_short or reckoning.short,
         slowed=keeper.slowed_for_energy,
     )
+
+
+def _finite(value: float | None) -> float | None:
+    """A figure for the report, None when it is not a number (a report must never fail)."""
+    return value if value is not None and math.isfinite(value) else None

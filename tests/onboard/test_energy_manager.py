@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import pytest
 from numpy.testing import assert_allclose
 
 from onboard.adf.odp import plan_legs
 from onboard.energy_manager import (
+    EnergyAssessment,
     EnergyManager,
     EnergyManagerParameters,
     assess_energy,
@@ -265,3 +267,20 @@ def _report(onboard: OnboardStack) -> m.StatusReport:
         traction_force_n=0.0,
         target_speed_mps=None,
     )
+
+
+def test_a_soc_that_is_not_a_number_is_dropped_and_a_report_never_fails() -> None:
+    manager = EnergyManager(URV, URV_PARAMETERS)
+    manager.read(_reading(math.nan))
+    assert manager.soc is None
+    manager.read(_reading(0.6))
+    manager.read(_reading(math.inf))
+    assert manager.soc == 0.6
+    onboard = _stack(soc=0.9)
+    broken = EnergyAssessment(math.nan, 1.0, 1.0, math.inf, 0.0, math.nan, 0.0, False)
+    onboard.energy.assess = lambda *_args: broken  # type: ignore[method-assign]
+    energy = _report(onboard).energy
+    assert energy is not None
+    assert energy.soc is None
+    assert energy.margin_j is None
+    assert energy.energy_available_j is None
