@@ -1,5 +1,5 @@
-"""The Energy Manager of seed 000 (§4, fig. 5): the energy to finish the mission against what
-the batteries and the range extender (RE) hold.
+"""The Energy Manager of seed 000 (its fig. 5, the ATO-OB logical architecture): the energy to
+finish the mission against what the batteries and the range extender (RE) hold.
 
 From the journey's plan (the ODP) and the vehicle model it works out the energy still needed
 to finish the journey (the mission: one journey profile); from the battery management systems'
