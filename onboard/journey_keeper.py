@@ -61,6 +61,7 @@ class JourneyKeeper:
         self.events: list[StackEvent] = []
         self._planned_at_m = 0.0
         self._planned_profile: m.JourneyProfile | None = None
+        self._short_while_running = False
 
     def use_line(self, track_map: TrackMap) -> None:
         """New track data: a journey accepted on the old ones is dropped, not started."""
@@ -95,7 +96,7 @@ class JourneyKeeper:
         if abs(position_m - self._planned_at_m) > REPLAN_MOVED_M:
             self.plan = self._plan(self._planned_profile or journey, position_m)
         self.driving.start_journey(self.plan, now_s, position_m=position_m)
-        self.started = True
+        self.started, self._short_while_running = True, False
 
     def stops_ahead(self, position_m: float) -> tuple[JourneyStop, ...] | None:
         """The stopping points still to serve (all of them before the start); None without
@@ -144,6 +145,21 @@ class JourneyKeeper:
                 f"the batteries and the range extender cannot finish journey "
                 f"{profile.journey_id} with the reserve ({_kwh(final)}): do not engage",
             )
+
+    def watch_energy(self, now_s: float) -> None:
+        """While the journey runs: warn the operator once when the margin on the plan followed
+        turns short (event ``energy.margin_short``), a journey accepted short excepted."""
+        driving, energy = self.driving, self.energy
+        if energy is None or not self.started or self.energy_short or driving.autonomous is None:
+            return
+        reckoning = energy.assess(driving.autonomous.plan, driving.journey_time_s(now_s))
+        if reckoning.short and not self._short_while_running:
+            self._note(
+                m.EventSeverity.WARNING,
+                "energy.margin_short",
+                f"the energy margin to the end of the journey has become short ({_kwh(reckoning)})",
+            )
+        self._short_while_running = reckoning.short
 
     def take_events(self) -> list[StackEvent]:
         """What the journey keeper noted for the event log since the last call."""

@@ -366,6 +366,7 @@ class OnboardStack:
             traction_allowed=traction and not (etcs is not None and etcs.traction_cut),
             service_brake=out.full_service_brake or etcs_brake or vc_braking,
         )
+        self.journey.watch_energy(now_s)
         return self.force_demand_n
 
     def _follow_mode_request(self, now_s: float, out: AtoObOutput) -> bool:

@@ -284,3 +284,17 @@ def test_a_soc_that_is_not_a_number_is_dropped_and_a_report_never_fails() -> Non
     assert energy.soc is None
     assert energy.margin_j is None
     assert energy.energy_available_j is None
+
+
+def test_a_margin_turning_short_while_running_warns_once() -> None:
+    onboard = _stack(soc=0.9)
+    assert onboard.review_journey(_tight_journey(window_s=60.0)) == (True, None)
+    onboard.journey.start(0.0, 200.0)
+    onboard.journey.watch_energy(1.0)
+    assert onboard.take_events() == []
+    onboard.energy.read(_reading(0.466, time_s=2.0))
+    onboard.journey.watch_energy(2.0)
+    onboard.journey.watch_energy(2.2)
+    events = onboard.take_events()
+    assert [event.code for event in events] == ["energy.margin_short"]
+    assert events[0].severity is m.EventSeverity.WARNING
