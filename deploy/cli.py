@@ -22,6 +22,8 @@ __all__ = ["app"]
 if TYPE_CHECKING:
     from sqlalchemy.orm import Session
 
+    from deploy.processes import MetricsEndpoint
+
 app = typer.Typer(
     help="ato: an open GoA4 ATO over ETCS stack for an unmanned inspection vehicle.",
     no_args_is_help=True,
@@ -52,6 +54,32 @@ TrackDirOption = Annotated[
         "--track-dir",
         help="Where the track data received from the trackside are kept, verified. "
         "Default: .ato/track/VEHICLE.",
+    ),
+]
+
+VcReplicasOption = Annotated[
+    int,
+    typer.Option(
+        "--vc-replicas",
+        min=1,
+        max=2,
+        help="VC boards: 2 in 2-out-of-2 with voter and watchdog (the vehicle's), 1 alone.",
+    ),
+]
+MetricsPortOption = Annotated[
+    int | None,
+    typer.Option(
+        "--metrics-port",
+        min=0,
+        help="Serve Prometheus metrics on this port (0: a free one, logged); off by default.",
+    ),
+]
+MetricsAddrOption = Annotated[
+    str,
+    typer.Option(
+        "--metrics-addr",
+        help="The metrics' address: loopback by default; another one needs --pki (HTTPS, "
+        "client certificates of the deployment's CA).",
     ),
 ]
 
@@ -154,6 +182,17 @@ def trackside(
     main(Settings(**overrides), host=host, port=port)  # type: ignore[arg-type]
 
 
+def _metrics_endpoint(port: int, addr: str, tls: TlsFiles | None) -> MetricsEndpoint:
+    """An onboard's metrics endpoint: plain HTTP on the loopback interface, HTTPS with client
+    certificates elsewhere (which needs the PKI)."""
+    from deploy.processes import MetricsEndpoint
+
+    loopback = addr in ("127.0.0.1", "::1", "localhost")
+    if not loopback and tls is None:
+        raise typer.BadParameter("metrics off the loopback interface need --pki")
+    return MetricsEndpoint(port, addr, None if loopback else tls)
+
+
 @app.command()
 def onboard(
     vehicle: Annotated[str, typer.Option("--vehicle", help="Vehicle id, e.g. URV1.")],
@@ -165,15 +204,7 @@ def onboard(
     fidelity: Annotated[
         str, typer.Option("--fidelity", help="Plant: point_mass or bogie (VCU + 10-DOF bogie).")
     ] = "point_mass",
-    vc_replicas: Annotated[
-        int,
-        typer.Option(
-            "--vc-replicas",
-            min=1,
-            max=2,
-            help="VC boards: 2 in 2-out-of-2 with voter and watchdog (the vehicle's), 1 alone.",
-        ),
-    ] = 2,
+    vc_replicas: VcReplicasOption = 2,
     vc_datalog: Annotated[
         Path | None,
         typer.Option(
@@ -187,6 +218,8 @@ def onboard(
     ] = False,
     track_dir: TrackDirOption = None,
     pki: PkiOption = None,
+    metrics_port: MetricsPortOption = None,
+    metrics_addr: MetricsAddrOption = "127.0.0.1",
     verbose: bool = False,
 ) -> None:
     """Run one ATO-OB process on a line the trackside holds (fetched if there is no copy)."""
@@ -200,6 +233,9 @@ def onboard(
     if fidelity not in ("point_mass", "bogie"):
         raise typer.BadParameter("--fidelity must be point_mass or bogie")
     datalog = vc_datalog or Path(".ato/vc") / f"{vehicle}.jsonl"
+    metrics = None
+    if metrics_port is not None:
+        metrics = _metrics_endpoint(metrics_port, metrics_addr, tls)
     stop = threading.Event()
     with stop_on_signals(stop):
         run_onboard(
@@ -212,6 +248,7 @@ def onboard(
             vc_replicas=vc_replicas,
             vc_datalog=None if no_vc_datalog else datalog,
             track_dir=track_dir or Path(".ato/track") / vehicle,
+            metrics=metrics,
         )
 
 
@@ -372,6 +409,17 @@ ResumeOption = Annotated[
     ),
 ]
 
+ClusterOption = Annotated[
+    str | None,
+    typer.Option(
+        "--cluster",
+        metavar="ADDRESS",
+        help="Run on the Dask cluster of this scheduler (tcp://host:8786, or tls:// with the "
+        "certificates of Dask's configuration) instead of --workers local processes; 'local' "
+        "starts a Dask cluster of --workers processes for the campaign.",
+    ),
+]
+
 
 @app.command()
 def campaign(
@@ -391,11 +439,13 @@ def campaign(
     out: GeneratedOutOption = None,
     shrink_runs: ShrinkRunsOption = 12,
     resume: ResumeOption = False,
+    cluster: ClusterOption = None,
 ) -> None:
     """Scenarios × seeds × variations in lockstep over worker processes; a summary table. Exit
     1 if a run crashed or ended unsafe (overspeed beyond the EBI, EoA passed, obstacle reached).
     With --generate N: N scenarios drawn from a space, judged by the invariants, each
-    invariant's first failure shrunk; exit 1 on any violation."""
+    invariant's first failure shrunk; exit 1 on any violation. With --cluster ADDRESS: the runs
+    on a Dask cluster (docs/scenarios.md, "Campaigns on a cluster"); exit 2 if it is lost."""
     from deploy.scenario.console import campaign_from_cli, generated_campaign_from_cli
 
     if generate is not None:
@@ -411,6 +461,7 @@ def campaign(
                 shrink_runs=shrink_runs,
                 json_path=json_path,
                 resume=resume,
+                cluster=cluster,
             )
         )
     raise typer.Exit(
@@ -421,6 +472,7 @@ def campaign(
             workers=workers,
             vary=vary or [],
             json_path=json_path,
+            cluster=cluster,
         )
     )
 
@@ -520,6 +572,9 @@ def bench_adf(
         float | None,
         typer.Option("--duration", min=1.0, help="--against: cut the lap to this many seconds."),
     ] = None,
+    energy_legs: Annotated[
+        int, typer.Option(min=0, help="Generated legs in the energy-plan table (issue 22).")
+    ] = 100,
 ) -> None:
     """Plan energies, the RD → AD → RD hand-over, NMPC solve times (ours against IPOPT); with
     --against REF, the NMPC's solve times and trajectory on the lap side by side with REF."""
@@ -530,7 +585,7 @@ def bench_adf(
     if against is None:
         from deploy.bench.adf_bench import bench_adf as run
 
-        results = run(plots_dir=plots)
+        results = run(plots_dir=plots, energy_legs=energy_legs)
         if json_path is not None:
             write_json(json_path, {"laps": results})
         return

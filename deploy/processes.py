@@ -22,6 +22,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from types import FrameType
 from typing import IO, TYPE_CHECKING, Self
@@ -31,13 +32,15 @@ from deploy._exceptions import DeployError
 if TYPE_CHECKING:
     import zenoh
 
-    from onboard.node import Fidelity
-    from protocol import ZenohSettings
+    from onboard.metrics import MetricsServer
+    from onboard.node import Fidelity, OnboardNode
+    from protocol import TlsFiles, ZenohSettings
     from trackdb import Line
 
 __all__ = [
     "ChildError",
     "ChildProcess",
+    "MetricsEndpoint",
     "accepts_connections",
     "ato_command",
     "run_onboard",
@@ -318,6 +321,26 @@ def _line_to_run_on(
         return None
 
 
+@dataclass(frozen=True)
+class MetricsEndpoint:
+    """Where an onboard process serves its metrics: ``port`` (0: a free one, logged) on
+    ``addr``; HTTPS with client certificates of the deployment's CA when ``tls`` is given."""
+
+    port: int
+    addr: str = "127.0.0.1"
+    tls: TlsFiles | None = None
+
+    def serve(self, node: OnboardNode) -> MetricsServer:
+        from onboard.metrics import OnboardCollector, serve_metrics
+
+        server = serve_metrics(OnboardCollector(node), port=self.port, addr=self.addr, tls=self.tls)
+        scheme = "http" if self.tls is None else "https"
+        _log.info(
+            "metrics of %s at %s://%s:%d/metrics", node.vehicle_id, scheme, self.addr, server.port
+        )
+        return server
+
+
 def run_onboard(
     vehicle_id: str,
     *,
@@ -329,9 +352,11 @@ def run_onboard(
     vc_replicas: int = 2,
     vc_datalog: Path | None = None,
     track_dir: Path | None = None,
+    metrics: MetricsEndpoint | None = None,
 ) -> None:
     """Run one vehicle's onboard in real time × ``speed_factor`` until ``stop`` is set: the VC
-    is two boards in 2-out-of-2 by default, recording its datalog at ``vc_datalog`` if given.
+    is two boards in 2-out-of-2 by default, recording its datalog at ``vc_datalog`` if given;
+    its Prometheus metrics served at ``metrics`` if given (``onboard.metrics``).
 
     No line is built into the onboard: it starts on its copy in ``track_dir`` if the trackside
     holds no newer version, else on the trackside's line, fetched, verified and stored there;
@@ -364,16 +389,27 @@ def run_onboard(
             track_map=TrackMap(line),
         )
 
-        def stop_when_asked() -> None:
-            stop.wait()
-            node.stop()
-
-        watcher = threading.Thread(target=stop_when_asked, daemon=True)
-        watcher.start()
         _log.info(
             "onboard %s running on %s %s at ×%g", vehicle_id, line_id, line.version(), speed_factor
         )
-        try:
-            node.run()
-        finally:
-            node.close()
+        _run_until_stopped(node, stop, metrics)
+
+
+def _run_until_stopped(
+    node: OnboardNode, stop: threading.Event, metrics: MetricsEndpoint | None
+) -> None:
+    """Run ``node`` (serving its metrics) until ``stop`` is set; close it."""
+
+    def stop_when_asked() -> None:
+        stop.wait()
+        node.stop()
+
+    watcher = threading.Thread(target=stop_when_asked, daemon=True)
+    watcher.start()
+    server = None if metrics is None else metrics.serve(node)
+    try:
+        node.run()
+    finally:
+        if server is not None:
+            server.close()
+        node.close()

@@ -64,6 +64,9 @@ class UpPlan:
     fidelity: str = "point_mass"
     simulated_operators: bool = False
     """The trackside's simulated operator answers every vehicle's VC requests (unattended)."""
+    metrics: bool = True
+    """Each onboard serves its Prometheus metrics on a free loopback port, the trackside at
+    ``/metrics`` with a scrape token written to ``data_dir/metrics-token`` (docs/metrics.md)."""
     insecure: bool = False
     """Plain TCP links without certificates or access control (debugging only); by default the
     links are TLS with the certificates of ``data_dir/pki``, the router's ACL admitting the
@@ -116,6 +119,10 @@ class Fleet:
     admin: tuple[str, str]
     database: str = ""
     """The trackside's database URL."""
+    metrics_token: str = field(default_factory=lambda: secrets.token_urlsafe(24))
+    """The bearer token of the trackside's ``/metrics``."""
+    metrics_urls: dict[str, str] = field(default_factory=dict)
+    """Each onboard's metrics endpoint, by vehicle."""
     parts: list[ChildProcess] = field(default_factory=list)
     _stop: threading.Event = field(default_factory=threading.Event)
 
@@ -129,10 +136,14 @@ class Fleet:
         user = os.environ.get("ATO_ADMIN_USER") or "admin"
         password = os.environ.get("ATO_ADMIN_PASSWORD") or secrets.token_urlsafe(12)
         env = dict(os.environ, ATO_ADMIN_USER=user, ATO_ADMIN_PASSWORD=password)
+        metrics_token = os.environ.get("ATO_METRICS_TOKEN") or secrets.token_urlsafe(24)
+        if plan.metrics:
+            env["ATO_METRICS_TOKEN"] = metrics_token
         if plan.simulated_operators:
             env["ATO_SIMULATED_OPERATORS"] = ",".join(plan.vehicle_ids())
         database = plan.database or f"sqlite:///{(plan.data_dir / 'trackside.db').resolve()}"
         fleet = cls(plan, endpoint, f"http://{plan.host}:{port}", (user, password), database)
+        fleet.metrics_token = metrics_token
         fleet.parts.append(_router_part(plan, endpoint, security, logs / "router.log"))
         fleet.parts.append(
             _part(
@@ -154,31 +165,40 @@ class Fleet:
             )
         )
         for vehicle in plan.vehicle_ids():
-            fleet.parts.append(
-                _part(
-                    f"onboard-{vehicle}",
-                    ato_command(
-                        "onboard",
-                        "--vehicle",
-                        vehicle,
-                        "--zenoh",
-                        endpoint,
-                        "--line",
-                        plan.line,
-                        "--speed",
-                        str(plan.speed),
-                        "--track-dir",
-                        str(plan.data_dir / "track" / vehicle),
-                        "--fidelity",
-                        plan.fidelity,
-                        "--vc-datalog",
-                        str(plan.data_dir / "vc" / f"{vehicle}.jsonl"),
-                        *security,
-                    ),
-                    logs / f"onboard-{vehicle}.log",
-                )
-            )
+            fleet.parts.append(fleet._onboard_part(vehicle, security, logs))
         return fleet
+
+    def _onboard_part(self, vehicle: str, security: list[str], logs: Path) -> ChildProcess:
+        """``ato onboard`` for ``vehicle``, its metrics on a free loopback port if asked."""
+        plan = self.plan
+        metrics: list[str] = []
+        if plan.metrics:
+            metrics_port = free_tcp_port()
+            metrics = ["--metrics-port", str(metrics_port)]
+            self.metrics_urls[vehicle] = f"http://127.0.0.1:{metrics_port}/metrics"
+        return _part(
+            f"onboard-{vehicle}",
+            ato_command(
+                "onboard",
+                "--vehicle",
+                vehicle,
+                "--zenoh",
+                self.router_endpoint,
+                "--line",
+                plan.line,
+                "--speed",
+                str(plan.speed),
+                "--track-dir",
+                str(plan.data_dir / "track" / vehicle),
+                "--fidelity",
+                plan.fidelity,
+                "--vc-datalog",
+                str(plan.data_dir / "vc" / f"{vehicle}.jsonl"),
+                *metrics,
+                *security,
+            ),
+            logs / f"onboard-{vehicle}.log",
+        )
 
     def part(self, name: str) -> ChildProcess:
         for part in self.parts:
@@ -299,6 +319,10 @@ def run_up(plan: UpPlan, stop: threading.Event, *, out: Callable[[str], None] = 
         secret = plan.data_dir / "admin-password"
         secret.write_text(fleet.admin[1] + "\n")
         secret.chmod(0o600)
+    if plan.metrics and "ATO_METRICS_TOKEN" not in os.environ:
+        token_file = plan.data_dir / "metrics-token"
+        token_file.write_text(fleet.metrics_token + "\n")
+        token_file.chmod(0o600)
     try:
         fleet.start(stop=stop)
     except UpError as exc:
@@ -310,6 +334,15 @@ def run_up(plan: UpPlan, stop: threading.Event, *, out: Callable[[str], None] = 
     )
     for name, pid, log in fleet.table():
         out(f"  {name:<16} pid {pid:<8} log {log}")
+    if plan.metrics:
+        where = (
+            "$ATO_METRICS_TOKEN"
+            if "ATO_METRICS_TOKEN" in os.environ
+            else plan.data_dir / "metrics-token"
+        )
+        out(f"  metrics: {fleet.url}/metrics (bearer token in {where})")
+        for vehicle, url in fleet.metrics_urls.items():
+            out(f"  metrics: {vehicle} {url}")
     reported: set[str] = set()
     try:
         while not stop.wait(0.5):

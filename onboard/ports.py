@@ -11,6 +11,7 @@ queue or signal.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
+from typing import Any
 
 import zenoh
 
@@ -132,6 +133,16 @@ class TracksidePorts:
     def received_terminations(self) -> Iterator[m.SessionTermination]:
         while (received := self.terminations.try_recv()) is not None:
             yield received[1]
+
+    def subscribers(self) -> tuple[TypedSubscriber[Any], ...]:
+        """Every subscriber of the trackside's messages, for their counters."""
+        return (
+            self.journeys,
+            self.status_acks,
+            self.terminations,
+            self.authorities,
+            self.restrictions,
+        )
 
     @property
     def inputs_received(self) -> tuple[int, int, int]:

@@ -26,6 +26,7 @@ import zenoh
 
 from protocol import (
     LivelinessWatcher,
+    TopicStats,
     TransportError,
     TypedPublisher,
     TypedQueryable,
@@ -152,6 +153,11 @@ class ZenohBridge:
     @property
     def status_stats(self) -> object:
         return self._status.stats
+
+    def topic_stats(self) -> dict[str, TopicStats]:
+        """Each subscribed topic's counters (received, bad payloads, queue overflows)."""
+        subscribers = (self._status, self._events, self._journey_acks, self._terminations)
+        return {subscriber.topic.name: subscriber.stats for subscriber in subscribers}
 
     def add_listener(self, listener: ChangeListener) -> None:
         with self._lock:

@@ -33,6 +33,11 @@ class Settings(BaseSettings):
     )
     admin_user: str | None = None
     admin_password: SecretStr | None = None
+    metrics_token: SecretStr | None = Field(
+        default=None,
+        description="Bearer token a Prometheus scrape of /metrics must carry; unset, only "
+        "loopback clients may scrape (docs/metrics.md)",
+    )
     token_ttl_s: float = Field(default=12 * 3600.0, gt=0, description="Bearer token life [s]")
     hold_lease_s: float = Field(
         default=60.0,

@@ -38,6 +38,7 @@ from trackside.db import create_database_engine, migrate
 from trackside.edge import EdgeMiddleware, content_security_policy, inline_style_hashes
 from trackside.live import LiveHub
 from trackside.log_redaction import install_token_redaction
+from trackside.metrics import add_metrics
 from trackside.models import AuditEntry, Role
 from trackside.ratelimit import LoginLimiter
 from trackside.rbc import LineInfo, RbcEmulator
@@ -356,6 +357,12 @@ def create_app(settings: Settings, *, zenoh_session: zenoh.Session | None = None
     )
     app.include_router(_api_router())
     _add_health_route(app)
+    add_metrics(
+        app,
+        token=lambda: (
+            None if settings.metrics_token is None else settings.metrics_token.get_secret_value()
+        ),
+    )
     _add_web_console(app, settings.webui_dir)
     return app
 

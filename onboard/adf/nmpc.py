@@ -296,7 +296,9 @@ class NmpcController:
             ]
         )
         upper = self._stage_bounds(reference)
-        if self._jumped(reference):
+        if self._reference is not None and _reference_jumped(
+            reference, self._reference, self.config.jump_mps
+        ):
             self._guess = None
         self._reference = reference
         started = time.perf_counter()
@@ -342,42 +344,10 @@ class NmpcController:
             return None
         if solver.success:
             return solution
-        if self._feasible(solver):
+        if _feasible(solver, self.config.feasibility_tolerance):
             self.stats.not_converged += 1
             return solution
         return None
-
-    def _jumped(self, reference: NmpcReference) -> bool:
-        """Whether the reference or the ceiling moved by more than ``jump_mps`` against the
-        previous one shifted by a step (the warm start would begin far from the new optimum)."""
-        previous = self._reference
-        if previous is None:
-            return False
-        jump = self.config.jump_mps
-        for new, old in (
-            (reference.speed_mps, previous.speed_mps),
-            (reference.max_speed_mps, previous.max_speed_mps),
-        ):
-            if np.any(
-                np.abs(np.minimum(new[:-1], MAX_SPEED_MPS) - np.minimum(old[1:], MAX_SPEED_MPS))
-                > jump
-            ):
-                return True
-        return False
-
-    def _feasible(self, solver: BufferedNlp) -> bool:
-        """Whether the solver's last solution meets every constraint and bound within the
-        feasibility tolerance."""
-        tolerance = self.config.feasibility_tolerance
-        bounds, solution = solver.inputs, solver.outputs
-        g, x = solution["g"], solution["x"]
-        excess = max(
-            float(np.max(bounds["lbg"] - g)),
-            float(np.max(g - bounds["ubg"])),
-            float(np.max(bounds["lbx"] - x)),
-            float(np.max(x - bounds["ubx"])),
-        )
-        return bool(np.all(np.isfinite(x))) and excess <= tolerance
 
     def _initial_guess(self, state: FloatArray, track_kn: FloatArray) -> FloatArray:
         n = self.config.horizon_steps
@@ -495,3 +465,32 @@ def _solver_options(config: NmpcConfig, max_iterations: int) -> dict[str, Any]:
             "error_on_fail": False,
         },
     }
+
+
+def _reference_jumped(reference: NmpcReference, previous: NmpcReference, jump_mps: float) -> bool:
+    """Whether the reference or the ceiling moved by more than ``jump_mps`` against the
+    previous one shifted by a step (the warm start would begin far from the new optimum)."""
+    for new, old in (
+        (reference.speed_mps, previous.speed_mps),
+        (reference.max_speed_mps, previous.max_speed_mps),
+    ):
+        if np.any(
+            np.abs(np.minimum(new[:-1], MAX_SPEED_MPS) - np.minimum(old[1:], MAX_SPEED_MPS))
+            > jump_mps
+        ):
+            return True
+    return False
+
+
+def _feasible(solver: BufferedNlp, tolerance: float) -> bool:
+    """Whether the solver's last solution meets every constraint and bound within
+    ``tolerance``."""
+    bounds, solution = solver.inputs, solver.outputs
+    g, x = solution["g"], solution["x"]
+    excess = max(
+        float(np.max(bounds["lbg"] - g)),
+        float(np.max(g - bounds["ubg"])),
+        float(np.max(bounds["lbx"] - x)),
+        float(np.max(x - bounds["ubx"])),
+    )
+    return bool(np.all(np.isfinite(x))) and excess <= tolerance

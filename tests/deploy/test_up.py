@@ -15,6 +15,7 @@ from pathlib import Path
 
 import httpx
 import pytest
+from prometheus_client.parser import text_string_to_metric_families
 from typer.testing import CliRunner
 
 from deploy.cli import app
@@ -48,6 +49,7 @@ class Up:
         self.pids = {
             name: int(pid) for name, pid in re.findall(r"^\s+(\S+)\s+pid (\d+)", text, re.MULTILINE)
         }
+        self.metrics = dict(re.findall(r"^\s+metrics: (URV\d+) (\S+)$", text, re.MULTILINE))
         token = httpx.post(
             f"{self.url}/api/v1/auth/token", data={"username": user, "password": password}
         ).json()["access_token"]
@@ -87,7 +89,7 @@ def _running(process: subprocess.Popen[str]) -> Iterator[Up]:
     lines: list[str] = []
     for line in process.stdout:
         lines.append(line.rstrip())
-        if line.startswith("  onboard-URV2"):
+        if line.startswith("  metrics: URV2"):
             break
         if "failed" in line:
             pytest.fail("\n".join(lines))
@@ -140,6 +142,42 @@ def test_two_vehicles_come_up_die_freeze_and_shut_down_cleanly(up: Up) -> None:
     up.process.send_signal(signal.SIGTERM)
     assert up.process.wait(30.0) == 0
     assert not [name for name, pid in up.pids.items() if _running_pid(pid)]
+
+
+def _samples(text: str) -> dict[tuple[str, tuple[tuple[str, str], ...]], float]:
+    return {
+        (sample.name, tuple(sorted(sample.labels.items()))): sample.value
+        for family in text_string_to_metric_families(text)
+        for sample in family.samples
+    }
+
+
+def test_metrics_are_scraped_from_the_trackside_and_each_onboard(up: Up, tmp_path: Path) -> None:
+    token = (tmp_path / "metrics-token").read_text().strip()
+    assert httpx.get(f"{up.url}/metrics").status_code == 403  # the token is needed
+
+    def trackside_metrics() -> dict[tuple[str, tuple[tuple[str, str], ...]], float]:
+        scraped = httpx.get(f"{up.url}/metrics", headers={"Authorization": f"Bearer {token}"})
+        assert scraped.status_code == 200, scraped.text
+        return _samples(scraped.text)
+
+    # The fleet is up when both vehicles are alive; their sessions follow within a report.
+    assert wait_for(lambda: trackside_metrics()[("ato_ts_sessions_open", ())] == 2.0, 10.0)
+    trackside = trackside_metrics()
+    assert trackside[("ato_ts_vehicles_alive", ())] == 2.0
+    for vehicle in ("URV1", "URV2"):
+        assert trackside[("ato_ts_vehicle_alive", (("vehicle", vehicle),))] == 1.0
+    assert set(up.metrics) == {"URV1", "URV2"}
+    for vehicle, url in up.metrics.items():
+        onboard = _samples(httpx.get(url).text)
+        label = (("vehicle", vehicle),)
+        assert onboard[("ato_ob_up", label)] == 1.0
+        assert onboard[("ato_ob_session_established", label)] == 1.0
+        assert onboard[("ato_ob_status_reports_sent_total", label)] > 0
+        assert onboard[("ato_ob_position_confidence_m", label)] >= 0.0
+        assert ("ato_ob_nmpc_solve_seconds_count", label) in onboard
+        assert ("ato_ob_vc_events_total", (("kind", "eb_commanded"), *label)) in onboard
+        assert onboard[("ato_ob_task_overruns_total", (("task", "control"), *label))] >= 0
 
 
 def test_the_fleet_links_are_tls_and_only_its_own_parties_get_an_answer(
