@@ -55,6 +55,13 @@ AUTHORITY_BRAKING_MPS2 = 0.35
 stays under the ETCS permitted curve, whose SBD uses the full A_brake_service but starts the
 reaction and build-up times earlier (a stop for the EoA is not a stop planned at the timetable's
 pace: it comes when the MA is shortened, and must never bring an ETCS intervention)."""
+AUTHORITY_LOOKAHEAD_S = 10.0
+"""An EoA short of the next stop is planned for once the train could come within this long [s]
+of the plan's braking for it (running at the highest of its speed, the journey's cap and the
+MRSP up to it), not before: the journey's plan runs on until then, and an MA extended in the
+meantime (the RBC's, section by section) costs nothing. A stop planned for at once held the cap
+where the journey's plan coasted, and the replan back on time braked (bologna-ring's last leg
+drew 0.369 kWh of plan against 0.275, docs/scenarios.md "The energy certificate")."""
 TSR_DELAYS_S = (15.0, 30.0, 60.0, 120.0, 300.0)
 """How late [s] a leg replanned under a new TSR may arrive, tried in turn when it cannot keep
 its schedule."""
@@ -188,6 +195,10 @@ class LegReplanner:
             return None
         if eoa is not None and eoa - EOA_STOP_MARGIN_M < stop.distance_m - STOP_TOLERANCE_M:
             target = eoa - EOA_STOP_MARGIN_M - ODOMETRY_SHARE * max(eoa - travelled, 0.0)
+            if self.eoa_stop_m is None and target - travelled > self._reach_m(
+                position_m, travelled, speed_mps, target
+            ):
+                return None  # not yet within reach: the plan in force runs on
             known, planned_for = self.eoa_stop_m, self._eoa_planned_for_m
             # Hold the plan unless the stop must come closer, the EoA itself moved on, or the
             # train stands at the stop and can close up by a step: the anticipated growth of
@@ -210,6 +221,22 @@ class LegReplanner:
             self.eoa_stop_m = None
             return plan
         return None
+
+    def _reach_m(
+        self, position_m: float, travelled_m: float, speed_mps: float, target_m: float
+    ) -> float:
+        """How far ahead [m] a stop for the EoA at ``target_m`` must be planned for now: the
+        run of :data:`AUTHORITY_LOOKAHEAD_S` and the braking at :data:`AUTHORITY_BRAKING_MPS2`
+        from the highest speed the train may reach before it."""
+        sections = self.track_map.mrsp_window(
+            self.track_map.normalise(position_m), max(target_m - travelled_m, 0.0)
+        )
+        fastest = max((section.speed_mps for section in sections), default=speed_mps)
+        journey = self.progress.journey
+        if journey is not None and journey.plan.cap_mps is not None:
+            fastest = min(fastest, journey.plan.cap_mps)
+        fastest = max(fastest, speed_mps)
+        return fastest * AUTHORITY_LOOKAHEAD_S + fastest**2 / (2.0 * AUTHORITY_BRAKING_MPS2)
 
     def catch_up(
         self, plan: OdpPlan, now_s: float, position_m: float, speed_mps: float
