@@ -2,10 +2,13 @@
 
 Prints, side by side in one run: the traction energy of (a) the plain LSPB plan, our
 energy-minimised plan and (b) the offline optimum on the bologna-ring lap and on a 30 km
-milano-bologna leg; the RD → AD → RD switches; and the lap of bologna-ring (three stops, 40 km/h
-cap) in closed loop on the point-mass plant with model mismatch, with our NMPC configuration
-(``sqpmethod`` + ``qrqp``) and with IPOPT on the same problem, on the energy plan, and with ours
-on the LSPB plan: NMPC solve times and the closed-loop KPIs."""
+milano-bologna leg; the energy plans leg by leg against the optimum and the LSPB
+(``deploy.bench.adf_energy_table``: the lap's legs, three milano-bologna legs, a leg with a
+passing point and ``energy_legs`` legs of the scenario generator); the RD → AD → RD switches;
+and the lap of bologna-ring (three stops, 40 km/h cap) in closed loop on the point-mass plant
+with model mismatch, with our NMPC configuration (``sqpmethod`` + ``qrqp``) and with IPOPT on
+the same problem, on the energy plan, and with ours on the LSPB plan: NMPC solve times and the
+closed-loop KPIs."""
 
 from __future__ import annotations
 
@@ -23,6 +26,7 @@ from deploy.bench.adf_closed_loop import (
     run_autonomous_journey,
     run_handover_sequence,
 )
+from deploy.bench.adf_energy_table import energy_table
 from deploy.bench.adf_paired import PairedController
 from deploy.bench.adf_plots import write_handover_plot
 from deploy.stats import percentiles
@@ -168,11 +172,14 @@ def handover(console: Console, plots_dir: Path | None) -> HandoverRecord:
     return record
 
 
-def bench_adf(*, plots_dir: Path | None = None) -> dict[str, dict[str, float]]:
+def bench_adf(
+    *, plots_dir: Path | None = None, energy_legs: int = 100
+) -> dict[str, dict[str, float]]:
     console = Console(width=130)
     energy_comparison(console)
+    legs = energy_table(console, generated=energy_legs)
     handover(console, plots_dir)
-    results: dict[str, dict[str, float]] = {}
+    results: dict[str, dict[str, float]] = {"energy_legs": legs}
     runs = {
         "sqpmethod, energy plan": ("sqpmethod", "energy"),
         "ipopt, energy plan": ("ipopt", "energy"),

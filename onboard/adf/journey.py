@@ -3,9 +3,9 @@
 A journey profile locates its timing points (TPs) by chainage and times them from the journey's
 start; the ADF plans from where the train stands when the journey starts, so each stopping TP
 becomes a distance travelled (forward along the line: modulo the length on a ring) with its
-arrival and departure times. Passing TPs are not planned for (the ADF plans stop to stop; a
-passing time is a check for the report, not a constraint of the plan), and TPs to be skipped
-are dropped.
+arrival and departure times. A passing TP becomes a time constraint inside its leg: the energy
+plan passes it at its arrival time (``onboard.adf.odp_journey``); the plain LSPB plan goes stop
+to stop. TPs to be skipped are dropped.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from onboard.adf.odp import InfeasibleLegError, OdpPlan, plan_legs
-from onboard.adf.odp_energy import plan_energy_legs
+from onboard.adf.odp_journey import LegFallback, PassingMiss, PassingPoint, plan_energy_journey
 from onboard.plant.point_mass import PointMassParameters
 from protocol import messages as m
 from trackdb import TrackMap
@@ -44,6 +44,12 @@ class JourneyPlan:
     plan: OdpPlan
     legs_kept_plain: int
     """Legs that kept the plain LSPB (no energy-minimised profile arrives on time)."""
+    passing: tuple[PassingPoint, ...] = ()
+    """The passing TPs, as time constraints of the energy plan."""
+    fallbacks: tuple[LegFallback, ...] = ()
+    """Each leg that kept the plain LSPB, with the reason (energy plans only)."""
+    passing_missed: tuple[PassingMiss, ...] = ()
+    """Passing TPs whose time no profile of their leg meets (the leg ignores them)."""
 
 
 def plan_journey(
@@ -62,11 +68,57 @@ def plan_journey(
         When a stop lies behind the train on an open line, two stops coincide, or a leg cannot
         be run in its time under the limits; the message names the timing point.
     """
+    stops, passing = _timing_points(track_map, profile, start_chainage_m)
+    legs = [(stop.distance_m, stop.arrival_s, stop.departure_s) for stop in stops]
+    cap = profile.max_speed_mps
+    fallbacks: tuple[LegFallback, ...] = ()
+    missed: tuple[PassingMiss, ...] = ()
+    try:
+        if energy:
+            planned = plan_energy_journey(
+                track_map,
+                model,
+                start_chainage_m=start_chainage_m,
+                stops=legs,
+                passing=passing,
+                cap_mps=cap,
+            )
+            plan, fallbacks, missed = planned.plan, planned.fallbacks, planned.passing_missed
+            kept = planned.kept_plain
+        else:
+            plan = plan_legs(track_map, start_chainage_m=start_chainage_m, stops=legs, cap_mps=cap)
+            kept = len(legs)
+    except InfeasibleLegError as exc:
+        raise InfeasibleLegError(f"journey {profile.journey_id}: {exc}") from exc
+    return JourneyPlan(
+        profile.journey_id,
+        profile.version,
+        start_chainage_m,
+        tuple(stops),
+        plan,
+        kept,
+        tuple(passing),
+        fallbacks,
+        missed,
+    )
+
+
+def _timing_points(
+    track_map: TrackMap, profile: m.JourneyProfile, start_chainage_m: float
+) -> tuple[list[JourneyStop], list[PassingPoint]]:
+    """The stopping TPs and the passing ones, located as distances travelled.
+
+    Raises
+    ------
+    InfeasibleLegError
+        As :func:`plan_journey`.
+    """
     stops: list[JourneyStop] = []
+    passing: list[PassingPoint] = []
     travelled = 0.0
     here = start_chainage_m
     for point in profile.timing_points:
-        if point.kind is not m.TimingPointKind.STOPPING:
+        if point.kind is m.TimingPointKind.SKIP:
             continue
         ahead = _forward_distance_m(track_map, here, point.position_m)
         if ahead < MIN_LEG_M:
@@ -75,6 +127,9 @@ def plan_journey(
             )
         travelled += ahead
         here = point.position_m
+        if point.kind is m.TimingPointKind.PASSING:
+            passing.append(PassingPoint(point.id, travelled, point.arrival_time_s))
+            continue
         departure = (
             point.arrival_time_s
             if point.departure_time_s is None
@@ -85,21 +140,7 @@ def plan_journey(
         )
     if not stops:
         raise InfeasibleLegError("the journey has no stopping timing point")
-    legs = [(stop.distance_m, stop.arrival_s, stop.departure_s) for stop in stops]
-    cap = profile.max_speed_mps
-    try:
-        if energy:
-            plan, kept = plan_energy_legs(
-                track_map, model, start_chainage_m=start_chainage_m, stops=legs, cap_mps=cap
-            )
-        else:
-            plan = plan_legs(track_map, start_chainage_m=start_chainage_m, stops=legs, cap_mps=cap)
-            kept = len(legs)
-    except InfeasibleLegError as exc:
-        raise InfeasibleLegError(f"journey {profile.journey_id}: {exc}") from exc
-    return JourneyPlan(
-        profile.journey_id, profile.version, start_chainage_m, tuple(stops), plan, kept
-    )
+    return stops, passing
 
 
 def _forward_distance_m(track_map: TrackMap, from_m: float, to_m: float) -> float:

@@ -49,11 +49,9 @@ from onboard.adf.odp import (
     SPEED_OVERREAD_SHARE,
     SPEED_UNDERREAD_SHARE,
     InfeasibleLegError,
-    LegProfile,
     OdpLeg,
     OdpPlan,
     held_under,
-    plan_legs,
 )
 from onboard.plant.point_mass import MIN_POWER_SPEED_MPS, PointMassParameters
 from protocol.units import MPS_PER_KMH
@@ -81,6 +79,10 @@ CRAWL_MPS = 0.5
 SPEED_TOLERANCE_MPS = 1e-3
 TIME_TOLERANCE_S = 1e-4
 ARRIVAL_TOLERANCE_S = 0.05
+MIN_DIP, DIP_TOLERANCE, PROBE_DIP, DIP_MIN_SAVING = 0.8, 0.02, 0.95, 1e-3
+"""The dip searched: the train coasts into a steep descent down to at least this share of its
+target speed; the search stops within this share; it is searched only if the probe dip saves
+at least the last share of the energy."""
 LIMIT_BRAKING_MPS2 = 0.5
 """Planned braking into a lower speed limit [m/s²], after :data:`LIMIT_REACTION_S`: ETCS
 supervises a speed decrease on an EBD-based curve whose permitted speed runs the reaction and
@@ -172,6 +174,7 @@ class LegTrack:
         max_acceleration_mps2: float = MAX_ACCELERATION_MPS2,
         braking_mps2: float = MAX_BRAKING_MPS2,
         limit_braking_mps2: float | None = LIMIT_BRAKING_MPS2,
+        final_speed_mps: float = 0.0,
     ) -> None:
         if not (math.isfinite(distance_m) and distance_m > 0.0):
             raise InfeasibleLegError(f"leg of {distance_m} m")
@@ -180,9 +183,39 @@ class LegTrack:
         self.model = model
         self.step_m = distance_m / steps
         self.distances_m = np.linspace(0.0, distance_m, steps + 1)
+        self.ceilings_mps = self._ceilings(track_map, start_chainage_m, cap_mps)
+        if not np.all(np.isfinite(self.ceilings_mps)):
+            raise InfeasibleLegError("the leg runs beyond the end of the line")
+        middles = start_chainage_m + (self.distances_m[:-1] + self.distances_m[1:]) / 2.0
+        self.track_forces_n = np.array([track_force_n(track_map, model, c) for c in middles])
+        self.effective_mass_kg = model.mass_kg * (1.0 + model.rotating_mass_factor)
+        self.max_acceleration_mps2 = max_acceleration_mps2
+        self.braking_mps2 = braking_mps2
+        """Into the stop at the leg's end [m/s²]."""
+        self.final_speed_mps = max(final_speed_mps, 0.0)
+        """The speed at the leg's end [m/s]: 0 at a stop, the passing speed at a passing point
+        (the leg is then the part of a stop-to-stop leg up to it)."""
+        self.keeps_permitted_curves = limit_braking_mps2 is not None
+        """Whether the plan keeps under the ETCS permitted curve of each drop of the limits; not
+        when ``limit_braking_mps2`` is None, a replan's last resort, which brakes into the
+        limits as into the stop."""
+        self.limit_braking_mps2 = (
+            braking_mps2 if limit_braking_mps2 is None else min(limit_braking_mps2, braking_mps2)
+        )
+        """Into a lower speed limit inside the leg [m/s²] (never harder than into the stop)."""
+        self.limit_envelope_mps = self._limit_envelope(track_map, start_chainage_m)
+        """The highest speed at each grid point from which the ETCS permitted curve of every
+        drop of the ceilings ahead is kept, as :data:`LIMIT_REACTION_S` and the odometry
+        interval make it [m/s] (infinite before no drop)."""
+
+    def _ceilings(
+        self, track_map: TrackMap, start_chainage_m: float, cap_mps: float | None
+    ) -> FloatArray:
+        """The MRSP under the plan's margins (and the cap) at each grid point [m/s]."""
+        steps = len(self.distances_m) - 1
         cap = math.inf if cap_mps is None else held_under(cap_mps, MRSP_MARGIN_MPS)
-        self.ceilings_mps = np.full(steps + 1, cap)
-        sections = track_map.mrsp_window(start_chainage_m, distance_m)
+        ceilings = np.full(steps + 1, cap)
+        sections = track_map.mrsp_window(start_chainage_m, float(self.distances_m[-1]))
         for index, section in enumerate(sections):
             speed_mps = held_under(section.speed_mps, MRSP_MARGIN_MPS)
             if index > 0 and sections[index - 1].speed_mps > section.speed_mps:
@@ -199,28 +232,9 @@ class LegTrack:
                 )
             first = max(0, math.floor(section.from_distance_m / self.step_m) - 1)
             last = min(steps, math.ceil(to_m / self.step_m) + 1)
-            view = self.ceilings_mps[first : last + 1]
+            view = ceilings[first : last + 1]
             np.minimum(view, speed_mps, out=view)
-        if not np.all(np.isfinite(self.ceilings_mps)):
-            raise InfeasibleLegError("the leg runs beyond the end of the line")
-        middles = start_chainage_m + (self.distances_m[:-1] + self.distances_m[1:]) / 2.0
-        self.track_forces_n = np.array([track_force_n(track_map, model, c) for c in middles])
-        self.effective_mass_kg = model.mass_kg * (1.0 + model.rotating_mass_factor)
-        self.max_acceleration_mps2 = max_acceleration_mps2
-        self.braking_mps2 = braking_mps2
-        """Into the stop at the leg's end [m/s²]."""
-        self.keeps_permitted_curves = limit_braking_mps2 is not None
-        """Whether the plan keeps under the ETCS permitted curve of each drop of the limits; not
-        when ``limit_braking_mps2`` is None, a replan's last resort, which brakes into the
-        limits as into the stop."""
-        self.limit_braking_mps2 = (
-            braking_mps2 if limit_braking_mps2 is None else min(limit_braking_mps2, braking_mps2)
-        )
-        """Into a lower speed limit inside the leg [m/s²] (never harder than into the stop)."""
-        self.limit_envelope_mps = self._limit_envelope(track_map, start_chainage_m)
-        """The highest speed at each grid point from which the ETCS permitted curve of every
-        drop of the ceilings ahead is kept, as :data:`LIMIT_REACTION_S` and the odometry
-        interval make it [m/s] (infinite before no drop)."""
+        return ceilings
 
     def _limit_envelope(self, track_map: TrackMap, start_chainage_m: float) -> FloatArray:
         distances, ceilings = self.distances_m, self.ceilings_mps
@@ -276,9 +290,21 @@ class LegTrack:
 class _Profiles:
     """Profiles of one leg for (V, U), with the targets and the braking envelope cached per V."""
 
-    def __init__(self, track: LegTrack, initial_mps: float, *, brake_down: bool = False) -> None:
+    def __init__(
+        self,
+        track: LegTrack,
+        initial_mps: float,
+        *,
+        brake_down: bool = False,
+        dip: float = 1.0,
+    ) -> None:
         self.track = track
         self.initial_mps = initial_mps
+        self.brake_down = brake_down
+        self.dip = dip
+        """The speed at the top of each steep descent as a share of the target there: below 1
+        the train coasts into the descent from before it (1: it holds the target up to it)."""
+        self._descents: dict[float, tuple[FloatArray, list[bool]]] = {}
         self._envelopes: dict[float, tuple[FloatArray, FloatArray]] = {}
         # A train faster than the holding speed slows down to it by coasting (no traction, no
         # loss to the brake), or, when the schedule asks for more time than coasting down can
@@ -304,8 +330,11 @@ class _Profiles:
         track = self.track
         n = track.steps
         targets = np.minimum(track.ceilings_mps, np.maximum(holding_mps, self._coast_down))
-        envelope = targets.copy()
-        envelope[n] = 0.0
+        # The holding speed is a target for the traction, not a ceiling: on a descent the
+        # train coasts above it up to the limits (no brake, MARECO's downhill coasting); only
+        # a train braking down to it (``brake_down``) is held under it.
+        envelope = targets.copy() if self.brake_down else track.ceilings_mps.copy()
+        envelope[n] = min(track.final_speed_mps, envelope[n])
         two_b_h = 2.0 * track.braking_mps2 * track.step_m
         for i in range(n - 1, -1, -1):
             envelope[i] = min(envelope[i], math.sqrt(envelope[i + 1] ** 2 + two_b_h))
@@ -354,7 +383,7 @@ class _Profiles:
         targets_v2 = (targets * targets).tolist()
         track_n = track.track_forces_n.tolist()
         for end in (*ends[ends < n], n):
-            low = 0.0 if end == n else float(targets[end])
+            low = track.final_speed_mps if end == n else float(targets[end])
             braking = track.braking_mps2 if end == n else track.limit_braking_mps2
             onset = max(onset_mps, low)
             onset_m = float(track.distances_m[end]) - (onset**2 - low**2) / (2.0 * braking)
@@ -386,14 +415,59 @@ class _Profiles:
             curves = np.minimum(curves, np.array(curves_list))
         return curves
 
+    def descent_curves(self, holding_mps: float) -> tuple[FloatArray, list[bool]]:
+        """Before each steep descent (where coasting at the target gains speed): the speeds
+        from which coasting reaches the descent's top at ``dip`` × the target there (infinite
+        elsewhere), and the steps of those descents, on which the train coasts (no traction
+        below the target either). The train coasts into the descent and gains the speed back
+        on it, instead of holding the target up to it (MARECO's coasting before a descent)."""
+        if holding_mps in self._descents:
+            return self._descents[holding_mps]
+        track = self.track
+        targets, _ = self.envelope(holding_mps)
+        curves = np.full(track.steps + 1, math.inf)
+        coast_only = np.zeros(track.steps, dtype=bool)
+        if self.dip < 1.0:
+            m = track.model
+            w = targets[:-1]
+            resistance = m.davis_a_n + m.davis_b_n_per_mps * w + m.davis_c_n_per_mps2 * w * w
+            gaining = (resistance + track.track_forces_n) < 0.0
+            starts = np.flatnonzero(gaining[1:] & ~gaining[:-1]) + 1
+            ends = np.flatnonzero(~gaining[1:] & gaining[:-1]) + 1
+            for start in starts.tolist():
+                self._coast_back(curves, targets, start, self.dip * float(targets[start]))
+                later = ends[ends > start]
+                coast_only[start : int(later[0]) if later.size else track.steps] = True
+        self._descents[holding_mps] = curves, coast_only.tolist()
+        return self._descents[holding_mps]
+
+    def _coast_back(self, curves: FloatArray, targets: FloatArray, end: int, low: float) -> None:
+        """Lower ``curves`` before point ``end`` to the coasting curve that ends there at
+        ``low`` [m/s], back to where it meets the targets."""
+        track = self.track
+        m = track.model
+        coast_k = 2.0 * track.step_m / track.effective_mass_kg
+        v2 = low * low
+        for i in range(end, -1, -1):
+            v2 = max(v2, CRAWL_MPS**2)
+            if v2 >= float(targets[i]) ** 2:
+                break
+            v = math.sqrt(v2)
+            curves[i] = min(curves[i], v)
+            if i > 0:
+                resistance = m.davis_a_n + m.davis_b_n_per_mps * v + m.davis_c_n_per_mps2 * v2
+                v2 += coast_k * (resistance + float(track.track_forces_n[i - 1]))
+
     def speeds(self, holding_mps: float, onset_mps: float) -> FloatArray:
         """The profile: drive below the coasting curves, coast on or above them, never above
         the braking envelope. (The hot loop of the planner: plain floats and lists.)"""
         track = self.track
         n, h = track.steps, track.step_m
         targets, envelope = self.envelope(holding_mps)
-        coasting = self.coasting_curves(targets, onset_mps).tolist()
+        descent, coast_only = self.descent_curves(holding_mps)
+        coasting = np.minimum(self.coasting_curves(targets, onset_mps), descent).tolist()
         envelope_v2 = (envelope * envelope).tolist()
+        targets_v2 = (targets * targets).tolist()
         coasting_v2 = [c * c for c in coasting]
         track_n = track.track_forces_n.tolist()
         m = track.model
@@ -409,8 +483,9 @@ class _Profiles:
         for i in range(n):
             vv = v * v
             resistance = a_n + b_n * v + c_n * vv + track_n[i]
-            if v >= coasting[i] - SPEED_TOLERANCE_MPS:
-                v2 = vv - coast_k * resistance
+            coast_v2 = vv - coast_k * resistance
+            if coast_only[i] or v >= coasting[i] - SPEED_TOLERANCE_MPS:
+                v2 = coast_v2
             else:
                 traction = f_max
                 if v > MIN_POWER_SPEED_MPS and p_max < f_max * v:
@@ -418,7 +493,11 @@ class _Profiles:
                 acceleration = (traction - resistance) / mass
                 if acceleration > a_max:
                     acceleration = a_max
-                v2 = vv + 2.0 * acceleration * h
+                # Traction up to the target (holding it); coasting where that is faster
+                # (a descent, or a train above the target coming down to it).
+                v2 = min(vv + 2.0 * acceleration * h, targets_v2[i + 1])
+                if coast_v2 > v2:
+                    v2 = coast_v2
                 if v2 > coasting_v2[i + 1]:
                     v2 = coasting_v2[i + 1]
             if v2 < crawl_v2 and i < n - 1:
@@ -468,12 +547,14 @@ def build_profile(
     braking_onset_mps: float | None = None,
     initial_speed_mps: float = 0.0,
     brake_down: bool = False,
+    dip: float = 1.0,
 ) -> ProfileLeg:
     """The profile for a holding speed V [m/s] and a braking onset speed U [m/s] (V, no
     coasting, when omitted), from ``initial_speed_mps`` to a stop at the leg's end; faster than
-    V at the start, the train coasts down to it (or brakes, with ``brake_down``)."""
+    V at the start, the train coasts down to it (or brakes, with ``brake_down``); into each
+    steep descent it coasts down to ``dip`` × V."""
     onset = holding_speed_mps if braking_onset_mps is None else braking_onset_mps
-    profiles = _Profiles(track, initial_speed_mps, brake_down=brake_down)
+    profiles = _Profiles(track, initial_speed_mps, brake_down=brake_down, dip=dip)
     speeds = profiles.speeds(holding_speed_mps, onset)
     times, energies = _cumulative(track, speeds)
     return ProfileLeg(
@@ -498,8 +579,13 @@ def optimise_leg(
     max_acceleration_mps2: float = MAX_ACCELERATION_MPS2,
     braking_mps2: float = MAX_BRAKING_MPS2,
     limit_braking_mps2: float | None = LIMIT_BRAKING_MPS2,
+    final_speed_mps: float = 0.0,
+    descents: bool = True,
 ) -> ProfileLeg:
-    """The least-traction-energy hold/coast/brake leg arriving after ``duration_s`` [s].
+    """The least-traction-energy hold/coast/brake leg arriving after ``duration_s`` [s], at a
+    stop (or at most at ``final_speed_mps`` [m/s]: a part of a leg up to a passing point);
+    with ``descents``, coasting into steep descents where that saves energy (a search that
+    multiplies the planning time by about ten on such legs).
 
     Raises
     ------
@@ -515,11 +601,13 @@ def optimise_leg(
         max_acceleration_mps2=max_acceleration_mps2,
         braking_mps2=braking_mps2,
         limit_braking_mps2=limit_braking_mps2,
+        final_speed_mps=final_speed_mps,
     )
     best: ProfileLeg | None = None
     for brake_down in (False, True) if initial_speed_mps > CRAWL_MPS else (False,):
-        profiles = _Profiles(track, initial_speed_mps, brake_down=brake_down)
-        leg = _optimise(track, profiles, duration_s, initial_speed_mps, brake_down=brake_down)
+        leg = _optimise_dips(
+            track, duration_s, initial_speed_mps, brake_down=brake_down, descents=descents
+        )
         on_time = abs(leg.duration_s - duration_s) <= ARRIVAL_TOLERANCE_S
         if on_time and (best is None or leg.traction_energy_j < best.traction_energy_j):
             best = leg
@@ -530,13 +618,66 @@ def optimise_leg(
     return best
 
 
-def _optimise(
+def _optimise_dips(
     track: LegTrack,
-    profiles: _Profiles,
     duration_s: float,
     initial_speed_mps: float,
     *,
     brake_down: bool,
+    descents: bool = True,
+) -> ProfileLeg:
+    """:func:`_optimise` without coasting into descents and, on a leg with steep descents,
+    with the dip (the share of the target the train coasts down to before each descent) that
+    gives the least energy (a bounded scalar search)."""
+    legs: dict[float, ProfileLeg | None] = {}
+
+    def leg_for(dip: float) -> ProfileLeg | None:
+        if dip not in legs:
+            profiles = _Profiles(track, initial_speed_mps, brake_down=brake_down, dip=dip)
+            try:
+                legs[dip] = _optimise(track, profiles, duration_s, initial_speed_mps)
+            except InfeasibleLegError:
+                legs[dip] = None
+        return legs[dip]
+
+    def energy(dip: float) -> float:
+        leg = leg_for(dip)
+        on_time = leg is not None and abs(leg.duration_s - duration_s) <= ARRIVAL_TOLERANCE_S
+        return leg.traction_energy_j if leg is not None and on_time else math.inf
+
+    plain = _optimise(
+        track,
+        _Profiles(track, initial_speed_mps, brake_down=brake_down),
+        duration_s,
+        initial_speed_mps,
+    )
+    legs[1.0] = plain
+    if not descents or not _descents_at(track, plain.holding_speed_mps):
+        return plain
+    # A probe first: most descents (a 2 ‰ one at 40 km/h) gain too little to pay for the
+    # search.
+    if energy(PROBE_DIP) >= plain.traction_energy_j * (1.0 - DIP_MIN_SAVING):
+        return plain
+    result = minimize_scalar(
+        energy, bounds=(MIN_DIP, 1.0), method="bounded", options={"xatol": DIP_TOLERANCE}
+    )
+    best = min((float(result.x), PROBE_DIP, 1.0), key=energy)
+    chosen = leg_for(best)
+    return plain if chosen is None else chosen
+
+
+def _descents_at(track: LegTrack, holding_mps: float) -> bool:
+    """Whether the leg has a steep descent at this holding speed: a step where coasting at
+    the target gains speed after one where it does not."""
+    m = track.model
+    w = np.minimum(track.ceilings_mps[:-1], holding_mps)
+    resistance = m.davis_a_n + m.davis_b_n_per_mps * w + m.davis_c_n_per_mps2 * w * w
+    gaining = (resistance + track.track_forces_n) < 0.0
+    return bool(np.any(gaining[1:] & ~gaining[:-1]))
+
+
+def _optimise(
+    track: LegTrack, profiles: _Profiles, duration_s: float, initial_speed_mps: float
 ) -> ProfileLeg:
     fastest = float(track.ceilings_mps.max())
     fastest_s = profiles.time_s(fastest, fastest)
@@ -569,7 +710,8 @@ def _optimise(
         holding_speed_mps=holding,
         braking_onset_mps=profiles.onset_mps(holding, duration_s),
         initial_speed_mps=initial_speed_mps,
-        brake_down=brake_down,
+        brake_down=profiles.brake_down,
+        dip=profiles.dip,
     )
 
 
@@ -584,27 +726,15 @@ def plan_energy_legs(
     """Plan stop to stop with energy-minimised legs; ``stops`` as for :func:`plan_legs`.
 
     Returns the plan and how many legs kept the plain LSPB because no energy-minimised profile
-    arrives on time for them (the LSPB, which may use harder blends, is the plan then).
+    arrives on time for them (:func:`onboard.adf.odp_journey.plan_energy_journey`, which also
+    gives the reasons and takes passing points).
     """
-    baseline = plan_legs(track_map, start_chainage_m=start_chainage_m, stops=stops, cap_mps=cap_mps)
-    legs: list[OdpLeg] = []
-    kept_plain = 0
-    for leg in baseline.legs:
-        segment = leg.segment
-        try:
-            optimised: LegProfile = optimise_leg(
-                track_map,
-                model,
-                start_chainage_m=start_chainage_m + leg.start_distance_m,
-                distance_m=segment.distance_m,
-                duration_s=segment.duration_s,
-                cap_mps=cap_mps,
-            )
-        except InfeasibleLegError:
-            optimised, kept_plain = segment, kept_plain + 1
-        legs.append(OdpLeg(leg.start_s, leg.start_distance_m, optimised))
-    plan = OdpPlan(legs, start_chainage_m=start_chainage_m, track_map=track_map, cap_mps=cap_mps)
-    return plan, kept_plain
+    from onboard.adf.odp_journey import plan_energy_journey  # it builds on this module
+
+    planned = plan_energy_journey(
+        track_map, model, start_chainage_m=start_chainage_m, stops=stops, cap_mps=cap_mps
+    )
+    return planned.plan, planned.kept_plain
 
 
 def replan_from_state(
@@ -687,6 +817,7 @@ def _replanned_profile(
                 initial_speed_mps=initial_speed_mps,
                 braking_mps2=braking_mps2,
                 limit_braking_mps2=limit_braking_mps2,
+                descents=False,
             )
     track = LegTrack(
         track_map,
