@@ -82,6 +82,7 @@ class JourneyKeeper:
             return False, f"infeasible: {exc}"
         self.plan, self._planned_at_m, self._planned_profile = plan, position_m, profile
         self.slowed_for_energy = self.energy_short = False
+        self._note_plan(plan)
         if self.energy is not None:
             self._within_energy(self.energy, plan, profile, position_m)
         self.started = False
@@ -168,6 +169,16 @@ class JourneyKeeper:
 
     def _note(self, severity: m.EventSeverity, code: str, text: str) -> None:
         self.events.append(StackEvent(severity, code, text))
+
+    def _note_plan(self, plan: JourneyPlan) -> None:
+        """Each leg kept as the plain LSPB and each passing time not kept: a warning in the
+        event log (docs/energy-planning.md)."""
+        for fallback in plan.fallbacks:
+            text = f"leg {fallback.leg + 1} keeps the plain LSPB: {fallback.reason}"
+            self._note(m.EventSeverity.WARNING, "journey.energy_plan_fallback", text)
+        for miss in plan.passing_missed:
+            text = f"passing point {miss.timing_point_id} not kept: {miss.reason}"
+            self._note(m.EventSeverity.WARNING, "journey.passing_time_missed", text)
 
     def _plan(self, profile: m.JourneyProfile, position_m: float) -> JourneyPlan:
         return plan_journey(

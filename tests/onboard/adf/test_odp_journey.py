@@ -22,10 +22,12 @@ from onboard.adf.odp_journey import (
     join_profiles,
     plan_energy_journey,
 )
-from onboard.plant import URV_PARAMETERS
+from onboard.plant import URV_PARAMETERS, PointMassModel
 from onboard.plant.point_mass import PointMassParameters
+from onboard.stack import OnboardStack
 from protocol import messages as m
 from protocol.units import MPS_PER_KMH
+from tests.onboard.test_stack import StandingLocator
 from trackdb import LineBuilder, TrackMap, load_seed_line
 from trackdb.journey import Journey, check_journey, journey_profile_message
 
@@ -291,3 +293,60 @@ def test_no_leg_of_a_library_journey_falls_back(path: Path) -> None:
     assert planned.legs_kept_plain == 0, planned.fallbacks
     assert not planned.fallbacks
     assert not planned.passing_missed
+
+
+def test_a_leg_the_vehicle_cannot_run_in_time_keeps_the_lspb_with_its_reason() -> None:
+    # 13 km over a 12 ‰ hill in 300 s at up to 200 km/h: the LSPB (0.5 m/s² at any speed) is
+    # feasible, the URV's 400 kW are not enough: a fallback, counted and explained.
+    line = TrackMap(load_seed_line("milano-bologna"))
+    planned = plan_energy_journey(
+        line,
+        URV_PARAMETERS,
+        start_chainage_m=45_000.0,
+        stops=[(13_000.0, 300.0, 300.0)],
+        cap_mps=200 * MPS_PER_KMH,
+    )
+    assert planned.kept_plain == 1
+    assert [fallback.leg for fallback in planned.fallbacks] == [0]
+    assert "more than the 300.0 s scheduled" in planned.fallbacks[0].reason
+    assert not isinstance(planned.plan.legs[0].segment, ProfileLeg)
+
+
+def test_a_passing_time_not_kept_is_an_event_of_the_journey_s_acceptance() -> None:
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    onboard = OnboardStack(
+        ring,
+        StandingLocator(200.0),
+        URV_PARAMETERS,
+        PointMassModel(URV_PARAMETERS).force_limits_n,
+        start_position_m=200.0,
+    )
+    onboard.track_database.record_trackside_version(
+        m.LineVersionReply(line_id="bologna-ring", version=ring.version)
+    )
+    points = (
+        m.TimingPoint(id="early", position_m=1500.0, kind="passing", arrival_time_s=20.0),
+        m.TimingPoint(
+            id="east",
+            position_m=1975.0,
+            kind="stopping",
+            arrival_time_s=300.0,
+            end_of_journey=True,
+        ),
+    )
+    profile = m.JourneyProfile(
+        vehicle_id="URV1",
+        journey_id="j",
+        version=1,
+        status="valid",
+        line_id="bologna-ring",
+        track_data_version=ring.version,
+        max_speed_mps=RING_CAP_MPS,
+        timing_points=points,
+    )
+    assert onboard.review_journey(profile) == (True, None)
+    events = onboard.take_events()
+    missed = [event for event in events if event.code == "journey.passing_time_missed"]
+    assert len(missed) == 1
+    assert missed[0].severity is m.EventSeverity.WARNING
+    assert "early" in missed[0].text
