@@ -58,6 +58,10 @@ __all__ = [
 
 INVARIANTS: tuple[InvariantName, ...] = get_args(InvariantName)
 """Every invariant, in the order of the summary's table."""
+SESSION_RETURN_S = 2.0
+"""The longest a new session takes once a lost Zenoh link is back (the link's 1 s lease, the
+trackside's token seen again, the handshake), with a margin; an operator's answer is refused
+until it stands (onboard.freshness)."""
 INFEASIBLE_MARKS = ("infeasible", "minimum running time")
 """A refused journey whose reason says one of these was refused as timing-infeasible."""
 
@@ -73,8 +77,12 @@ def faults_asking_for_vc_eb(spec: ScenarioSpec, settings: InvariantSettings) -> 
 
     An ATO-OB internal fault, a relay fault and a tachometer fault brake by design (the VC's
     catalogue). An absent operator and a lost Zenoh link (the operator sees nothing) ask for it
-    when the operator stays unseen, reaction included, at least ``vigilance_answer_s``: long
-    enough to miss a vigilance request. Sensor, link, odometry, TSR and MA faults never do.
+    when the operator may stay unseen at least ``vigilance_answer_s``, the vigilance timeout: a
+    request made as the window opens is then missed. An absent operator is unseen for the
+    window and his reaction. Over a lost link the answer the operator was about to give is
+    lost with it (a request seen a reaction before the cut), so the link is unseen for the
+    window, that reaction, the new session's handshake (:data:`SESSION_RETURN_S`) and a second
+    reaction to the request still pending. Sensor, link, odometry, TSR and MA faults never do.
     """
     asking = []
     reaction_s = spec.operator.reaction_s
@@ -83,6 +91,8 @@ def faults_asking_for_vc_eb(spec: ScenarioSpec, settings: InvariantSettings) -> 
             asking.append(f"faults.{index} ({fault.kind})")
         elif isinstance(fault, VigilanceAbsent | ZenohLinkLoss):
             unseen_s = fault.end_s - fault.start_s + reaction_s
+            if isinstance(fault, ZenohLinkLoss):
+                unseen_s += reaction_s + SESSION_RETURN_S
             if unseen_s >= settings.vigilance_answer_s:
                 asking.append(f"faults.{index} ({fault.kind}, {unseen_s:.1f} s unseen)")
     return asking

@@ -394,7 +394,15 @@ class WholeStackRun:
         driving = stack.driving
         standstill = plant.speed_mps / MPS_PER_KMH < STANDSTILL_KMH
         next_stop = None if driving.journey is None else driving.next_stop(plant.position_m)
-        ended = driving.journey is not None and next_stop is None and standstill
+        # Ended once the train stands past its last stop and the ADF believes it stands at it
+        # (on its estimate, which may come to standstill a moment after the truth): the stop
+        # is then recorded (telemetry, ``_note_stop``) before the run ends.
+        ended = (
+            driving.journey is not None
+            and next_stop is None
+            and standstill
+            and driving.stopped_at(stack.position_m, stack.speed_mps) is not None
+        )
         etcs = stack.etcs.output
         eoa_distance_m = (
             math.inf

@@ -232,6 +232,43 @@ def test_a_crash_and_the_excuses(small_spec: ScenarioSpec) -> None:
     assert set(INVARIANTS) >= {"crash", "stop_missed"}
 
 
+@pytest.mark.parametrize(
+    ("kind", "window_s", "reaction_s", "asks"),
+    [
+        # Absent operator: unseen for the window and one reaction.
+        ("vigilance_absent", 5.0, 4.5, False),
+        ("vigilance_absent", 6.0, 4.5, True),
+        # Lost link (gen-1-84): the answer in flight is lost with it, so a second reaction and
+        # the new session's handshake count too: 2.1 + 2 × 4.5 + 2 = 13.1 s ≥ 10 s.
+        ("zenoh_link_loss", 2.1, 4.5, True),
+        ("zenoh_link_loss", 2.0, 2.9, False),
+        ("zenoh_link_loss", 2.0, 3.0, True),
+    ],
+)
+def test_a_lost_operator_or_link_asks_for_the_vc_eb_when_a_vigilance_request_may_be_missed(
+    small_spec: ScenarioSpec, kind: str, window_s: float, reaction_s: float, asks: bool
+) -> None:
+    from deploy.scenario.invariants import faults_asking_for_vc_eb
+    from deploy.scenario.schema import VigilanceAbsent, ZenohLinkLoss
+
+    window = {"start_s": 180.0, "end_s": 180.0 + window_s}
+    fault = (
+        ZenohLinkLoss(kind="zenoh_link_loss", mode="reset", **window)
+        if kind == "zenoh_link_loss"
+        else VigilanceAbsent(kind="vigilance_absent", **window)
+    )
+    spec = small_spec.model_copy(
+        update={
+            "faults": (fault,),
+            "operator": small_spec.operator.model_copy(update={"reaction_s": reaction_s}),
+        }
+    )
+    settings = InvariantSettings(vigilance_answer_s=10.0)
+    assert bool(faults_asking_for_vc_eb(spec, settings)) is asks
+    found = judge(spec, sample_kpis(vc_eb_count=1, stops=[]), settings=settings)
+    assert ([v.invariant for v in found] == []) is asks
+
+
 def _ato_failure() -> Any:
     from deploy.scenario.schema import AtoFailure
 
