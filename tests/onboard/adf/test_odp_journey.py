@@ -350,3 +350,21 @@ def test_a_passing_time_not_kept_is_an_event_of_the_journey_s_acceptance() -> No
     assert len(missed) == 1
     assert missed[0].severity is m.EventSeverity.WARNING
     assert "early" in missed[0].text
+
+
+def test_two_passing_points_in_one_leg_are_both_kept() -> None:
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    passing = [PassingPoint("p1", 900.0, 125.0), PassingPoint("p2", 2000.0, 290.0)]
+    planned = plan_energy_journey(
+        ring,
+        URV_PARAMETERS,
+        start_chainage_m=3400.0,
+        stops=[(2850.0, 430.0, 430.0)],
+        passing=passing,
+        cap_mps=RING_CAP_MPS,
+    )
+    profile = _profile(planned)
+    assert not planned.passing_missed
+    assert _time_at_m(profile, 900.0) == pytest.approx(125.0, abs=0.1)
+    assert _time_at_m(profile, 2000.0) == pytest.approx(290.0, abs=0.1)
+    assert profile.duration_s == pytest.approx(430.0, abs=0.1)
