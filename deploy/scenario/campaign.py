@@ -14,11 +14,15 @@ end of authority, or reached an obstacle; a run that raised is a crash. Both are
 from __future__ import annotations
 
 import collections
+import contextlib
 import itertools
 import json
 import math
 import multiprocessing
+import os
+import tempfile
 import threading
+import time
 import traceback
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -30,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from deploy.scenario.kpi_model import Kpis, ServedStop
-from deploy.scenario.loader import load_scenario
+from deploy.scenario.loader import load_scenario, parse_scenario
 from deploy.scenario.runner import RunOptions, run_scenario
 from deploy.scenario.schema import ScenarioSpec
 from deploy.stats import percentiles
@@ -41,6 +45,7 @@ __all__ = [
     "FAULT_SCENARIOS",
     "Cell",
     "CellResult",
+    "PartialSummary",
     "Variation",
     "distribution",
     "parse_variation",
@@ -180,10 +185,18 @@ def _lists(value: Any) -> Any:
     return value
 
 
-def run_cell(cell: Cell) -> CellResult:
-    """One run (in a worker process); an exception becomes a crash with its traceback."""
+def run_cell(cell: Cell, text: str | None = None) -> CellResult:
+    """One run (in a worker process); an exception becomes a crash with its traceback.
+
+    ``text`` is the scenario file's content when the worker may not have the file (a worker of
+    a cluster on another machine); the cell's scenario is then only its name and path."""
     try:
-        spec = apply_setting(load_scenario(cell.scenario), cell.setting)
+        scenario = (
+            load_scenario(cell.scenario)
+            if text is None
+            else parse_scenario(text, path=cell.scenario, base_dir=Path(cell.scenario).parent)
+        )
+        spec = apply_setting(scenario, cell.setting)
         outcome = run_scenario(spec, RunOptions(fast=True, seed=cell.seed))
     except Exception:
         return CellResult(cell, None, traceback.format_exc(limit=8))
@@ -321,5 +334,47 @@ def summarise(results: Sequence[CellResult]) -> dict[str, Any]:
 
 
 def write_summary(summary: dict[str, Any], path: Path) -> None:
+    """Write ``summary`` to ``path`` through a temporary file renamed over it: a campaign
+    interrupted while writing leaves the previous summary, never half of one."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(summary, indent=2, allow_nan=False))
+    handle, temporary = tempfile.mkstemp(suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as out:
+            out.write(json.dumps(summary, indent=2, allow_nan=False))
+        os.replace(temporary, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(temporary)
+        raise
+
+
+class PartialSummary:
+    """The summary of the runs ended so far, written to ``path`` as they end, so that an
+    interrupted campaign leaves the summary of what it ran.
+
+    Written on the first result, then at most every ``interval_s`` (a summary of 10⁴ runs takes
+    a noticeable time to make) and on the last; ``pending`` counts the runs not ended yet.
+    """
+
+    def __init__(self, cells: Sequence[Cell], path: Path, *, interval_s: float = 5.0) -> None:
+        self.path = path
+        self.interval_s = interval_s
+        self._total = len(cells)
+        self._order: dict[Cell, collections.deque[int]] = {}
+        for index, cell in enumerate(cells):
+            self._order.setdefault(cell, collections.deque()).append(index)
+        self._done: dict[int, CellResult] = {}
+        self._written_at = -math.inf
+
+    def add(self, result: CellResult) -> None:
+        self._done[self._order[result.cell].popleft()] = result
+        now = time.monotonic()
+        if now - self._written_at >= self.interval_s or len(self._done) == self._total:
+            self._written_at = now
+            self.write()
+
+    def write(self, **extra: Any) -> None:
+        """The summary so far, with ``extra`` keys (the cluster's report, ...)."""
+        summary = summarise([self._done[index] for index in sorted(self._done)])
+        summary["pending"] = self._total - len(self._done)
+        write_summary(summary | extra, self.path)

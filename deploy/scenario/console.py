@@ -194,17 +194,20 @@ def campaign_from_cli(
     workers: int,
     vary: list[str],
     json_path: Path | None,
+    cluster: str | None = None,
 ) -> int:
-    """Run the matrix and print the summary; 0 unless a run crashed or ended unsafe."""
+    """Run the matrix (on the Dask cluster at ``cluster`` if given, else over ``workers`` local
+    processes) and print the summary, written to ``json_path`` as the runs end; 0 unless a run
+    crashed or ended unsafe, 2 if the matrix or the cluster cannot be used."""
     from deploy.scenario.campaign import (
         FAULT_SCENARIOS,
+        PartialSummary,
         apply_setting,
         matrix,
         parse_variation,
-        run_campaign,
         summarise,
-        write_summary,
     )
+    from deploy.scenario.cluster import ClusterError, run_cells
 
     console = Console(stderr=True)
     try:
@@ -216,18 +219,39 @@ def campaign_from_cli(
     except (ValueError, ScenarioFileError) as exc:
         console.print(f"[red]{exc}[/red]")
         return 2
-    with _campaign_progress(console, len(cells)) as (_bar, finished):
-        results = run_campaign(cells, workers=workers, on_result=finished)
+    partial = None if json_path is None else PartialSummary(cells, json_path)
+    try:
+        with _campaign_progress(console, len(cells)) as (_bar, finished):
+
+            def ended(result: CellResult) -> None:
+                finished(result)
+                if partial is not None:
+                    partial.add(result)
+
+            results, report = run_cells(cells, workers=workers, cluster=cluster, on_result=ended)
+    except ClusterError as exc:
+        console.print(str(exc), style="red", markup=False, highlight=False)
+        return 2
     summary = summarise(results)
+    if report is not None:
+        summary["cluster"] = report.as_json()
+        console.print(
+            f"cluster {report.address}: {report.workers} workers, {report.retries} runs retried"
+        )
+    _print_campaign(summary, results)
+    if partial is not None:
+        partial.write(**({} if report is None else {"cluster": report.as_json()}))
+        console.print(f"summary written to {json_path}")
+    return 0 if summary["crashed"] == 0 and summary["unsafe"] == 0 else 1
+
+
+def _print_campaign(summary: dict[str, Any], results: list[CellResult]) -> None:
+    """The table, then each run that crashed, ended unsafe or failed an expectation."""
     Console().print(_campaign_table(summary, results))
     for cell in summary["cells"]:
         if cell["error"] or cell["unsafe"] or cell["failed_expectations"]:
             what = cell["error"] or "; ".join(cell["unsafe"] + cell["failed_expectations"])
             Console().print(f"  {cell['label']}: {what.strip().splitlines()[-1]}")
-    if json_path is not None:
-        write_summary(summary, json_path)
-        console.print(f"summary written to {json_path}")
-    return 0 if summary["crashed"] == 0 and summary["unsafe"] == 0 else 1
 
 
 def _campaign_table(summary: dict[str, Any], results: list[CellResult]) -> Table:
@@ -305,9 +329,12 @@ def generated_campaign_from_cli(
     shrink_runs: int,
     json_path: Path | None,
     resume: bool = False,
+    cluster: str | None = None,
 ) -> int:
-    """Generate, run, judge, shrink and print; 0 when no invariant is violated, 1 otherwise,
-    2 when the space cannot be used."""
+    """Generate, run (on the Dask cluster at ``cluster`` if given), judge, shrink and print; 0
+    when no invariant is violated, 1 otherwise, 2 when the space or the cluster cannot be used.
+    Each run's result is kept in the output directory as it ends (``--resume``)."""
+    from deploy.scenario.cluster import ClusterError
     from deploy.scenario.generate import default_out_dir
     from deploy.scenario.generated import run_generated, summarise_generated
     from deploy.scenario.space import SpaceFileError, load_space
@@ -320,18 +347,25 @@ def generated_campaign_from_cli(
         return 2
     out = out_dir or default_out_dir(seed)
     console.print(f"generating {count} scenarios (space {space.name}, seed {seed}) into {out}/")
-    with _campaign_progress(console, count) as (bar, finished):
-        campaign = run_generated(
-            space,
-            count=count,
-            seed=seed,
-            out_dir=out,
-            workers=workers,
-            shrink_runs=shrink_runs,
-            on_result=finished,
-            on_shrink=lambda text: bar.console.print(text, markup=False, highlight=False),
-            resume=resume,
+    try:
+        with _campaign_progress(console, count) as (bar, finished):
+            campaign = run_generated(
+                space,
+                count=count,
+                seed=seed,
+                out_dir=out,
+                workers=workers,
+                shrink_runs=shrink_runs,
+                on_result=finished,
+                on_shrink=lambda text: bar.console.print(text, markup=False, highlight=False),
+                resume=resume,
+                cluster=cluster,
+            )
+    except ClusterError as exc:
+        console.print(
+            f"{exc} (the runs ended are kept: --resume)", style="red", markup=False, highlight=False
         )
+        return 2
     summary = summarise_generated(campaign, seed=seed, space=space.name)
     _print_generated(summary)
     if json_path is not None:

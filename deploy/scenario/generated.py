@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from deploy.scenario.campaign import Cell, CellResult, distribution, run_campaign, summarise
+from deploy.scenario.cluster import ClusterReport, run_cells
 from deploy.scenario.generate import Draw, draw, write_scenario
 from deploy.scenario.invariants import INVARIANTS, Violation, judge
 from deploy.scenario.kpi_model import Kpis, ServedStop
@@ -53,6 +54,8 @@ class GeneratedCampaign:
     violations: dict[str, list[Violation]]
     """By file path."""
     shrunk: dict[InvariantName, tuple[Path, ShrinkResult]]
+    cluster: ClusterReport | None = None
+    """What the cluster retried (a campaign run with ``cluster``)."""
 
 
 def _judged(spec: ScenarioSpec, result: CellResult) -> list[Violation]:
@@ -78,10 +81,13 @@ def run_generated(
     on_result: Callable[[CellResult], None] | None = None,
     on_shrink: Callable[[str], None] | None = None,
     resume: bool = False,
+    cluster: str | None = None,
 ) -> GeneratedCampaign:
     """Generate, run, judge and shrink; every file is written under ``out_dir``, each run's
     result too as it ends (``out_dir/results``); with ``resume``, the runs whose kept result
-    matches their scenario, seed and code are not made again (:mod:`deploy.scenario.run_store`)."""
+    matches their scenario, seed and code are not made again (:mod:`deploy.scenario.run_store`).
+    With ``cluster`` (a Dask scheduler's address) the runs are made on it; the shrinker's few
+    runs stay local."""
     drawn: dict[str, Draw] = {}
     specs: dict[str, ScenarioSpec] = {}
     for index in range(count):
@@ -89,12 +95,13 @@ def run_generated(
         path = str(write_scenario(space, item, out_dir))
         drawn[path], specs[path] = item, load_scenario(path)
     cells = [Cell(path, spec.seed) for path, spec in specs.items()]
-    results = _run_kept(
+    results, report = _run_kept(
         cells,
         RunStore(out_dir / "results", code_fingerprint()),
         workers=workers,
         resume=resume,
         on_result=on_result,
+        cluster=cluster,
     )
     violations = {r.cell.scenario: _judged(specs[r.cell.scenario], r) for r in results}
     shrunk: dict[InvariantName, tuple[Path, ShrinkResult]] = {}
@@ -116,7 +123,7 @@ def run_generated(
         )
         target = write_scenario(space, result.draw, out_dir)
         shrunk[invariant] = (target, result)
-    return GeneratedCampaign(results, specs, violations, shrunk)
+    return GeneratedCampaign(results, specs, violations, shrunk, report)
 
 
 def _run_kept(
@@ -126,9 +133,10 @@ def _run_kept(
     workers: int,
     resume: bool,
     on_result: Callable[[CellResult], None] | None,
-) -> list[CellResult]:
+    cluster: str | None = None,
+) -> tuple[list[CellResult], ClusterReport | None]:
     """The cells' results in their order: kept ones taken back (with ``resume``), the others
-    run, each kept as it ends."""
+    run (on ``cluster`` if given), each kept as it ends."""
     kept = {cell: store.load(cell) for cell in cells} if resume else {}
     for result in kept.values():
         if result is not None and on_result is not None:
@@ -140,8 +148,9 @@ def _run_kept(
             on_result(result)
 
     missing = [cell for cell in cells if kept.get(cell) is None]
-    ran = iter(run_campaign(missing, workers=workers, on_result=finished))
-    return [kept.get(cell) or next(ran) for cell in cells]
+    ran, report = run_cells(missing, workers=workers, cluster=cluster, on_result=finished)
+    made = iter(ran)
+    return [kept.get(cell) or next(made) for cell in cells], report
 
 
 def _values(results: Sequence[CellResult], key: str) -> list[float]:
@@ -187,6 +196,8 @@ def summarise_generated(campaign: GeneratedCampaign, *, seed: int, space: str) -
         invariants=by_invariant,
         distributions=kpi_distributions(campaign.results),
     )
+    if campaign.cluster is not None:
+        summary["cluster"] = campaign.cluster.as_json()
     for cell in summary["cells"]:
         cell["violations"] = [
             {"invariant": v.invariant, "detail": v.detail}
