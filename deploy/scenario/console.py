@@ -360,6 +360,7 @@ def generated_campaign_from_cli(
                 on_shrink=lambda text: bar.console.print(text, markup=False, highlight=False),
                 resume=resume,
                 cluster=cluster,
+                summary_path=json_path,
             )
     except ClusterError as exc:
         console.print(

@@ -17,7 +17,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from deploy.scenario.campaign import Cell, CellResult, distribution, run_campaign, summarise
+from deploy.scenario.campaign import (
+    Cell,
+    CellResult,
+    PartialSummary,
+    distribution,
+    run_campaign,
+    summarise,
+)
 from deploy.scenario.cluster import ClusterReport, run_cells
 from deploy.scenario.generate import Draw, draw, write_scenario
 from deploy.scenario.invariants import INVARIANTS, Violation, judge
@@ -82,12 +89,14 @@ def run_generated(
     on_shrink: Callable[[str], None] | None = None,
     resume: bool = False,
     cluster: str | None = None,
+    summary_path: Path | None = None,
 ) -> GeneratedCampaign:
     """Generate, run, judge and shrink; every file is written under ``out_dir``, each run's
     result too as it ends (``out_dir/results``); with ``resume``, the runs whose kept result
     matches their scenario, seed and code are not made again (:mod:`deploy.scenario.run_store`).
     With ``cluster`` (a Dask scheduler's address) the runs are made on it; the shrinker's few
-    runs stay local."""
+    runs stay local. With ``summary_path`` the campaign's summary of the runs ended so far is
+    written there as they end (:class:`deploy.scenario.campaign.PartialSummary`)."""
     drawn: dict[str, Draw] = {}
     specs: dict[str, ScenarioSpec] = {}
     for index in range(count):
@@ -102,6 +111,7 @@ def run_generated(
         resume=resume,
         on_result=on_result,
         cluster=cluster,
+        partial=None if summary_path is None else PartialSummary(cells, summary_path),
     )
     violations = {r.cell.scenario: _judged(specs[r.cell.scenario], r) for r in results}
     shrunk: dict[InvariantName, tuple[Path, ShrinkResult]] = {}
@@ -134,18 +144,25 @@ def _run_kept(
     resume: bool,
     on_result: Callable[[CellResult], None] | None,
     cluster: str | None = None,
+    partial: PartialSummary | None = None,
 ) -> tuple[list[CellResult], ClusterReport | None]:
     """The cells' results in their order: kept ones taken back (with ``resume``), the others
     run (on ``cluster`` if given), each kept as it ends."""
     kept = {cell: store.load(cell) for cell in cells} if resume else {}
-    for result in kept.values():
-        if result is not None and on_result is not None:
+
+    def ended(result: CellResult) -> None:
+        if partial is not None:
+            partial.add(result)
+        if on_result is not None:
             on_result(result)
+
+    for result in kept.values():
+        if result is not None:
+            ended(result)
 
     def finished(result: CellResult) -> None:
         store.save(result)
-        if on_result is not None:
-            on_result(result)
+        ended(result)
 
     missing = [cell for cell in cells if kept.get(cell) is None]
     ran, report = run_cells(missing, workers=workers, cluster=cluster, on_result=finished)
@@ -192,6 +209,7 @@ def summarise_generated(campaign: GeneratedCampaign, *, seed: int, space: str) -
         by_invariant[invariant] = entry
     summary.update(
         generated={"seed": seed, "space": space, "count": len(campaign.specs)},
+        pending=0,
         violations=sum(1 for found in campaign.violations.values() if found),
         invariants=by_invariant,
         distributions=kpi_distributions(campaign.results),

@@ -205,3 +205,30 @@ def test_a_tls_address_without_certificates_is_refused(monkeypatch: pytest.Monke
     )
     assert result.exit_code == 2, result.output
     assert "is TLS" in result.output
+
+
+def test_a_generated_campaigns_kept_runs_are_in_its_partial_summary(tmp_path: Path) -> None:
+    from deploy.scenario.generated import _run_kept
+    from deploy.scenario.run_store import RunStore
+
+    cells = []
+    for index in range(2):
+        scenario = tmp_path / f"gen-{index}.toml"
+        scenario.write_text(f"# scenario {index}\n")
+        cells.append(Cell(str(scenario), index))
+    store = RunStore(tmp_path / "results", "code")
+    for cell in cells:
+        store.save(CellResult(cell, sample_kpis()))
+    path = tmp_path / "summary.json"
+    results, report = _run_kept(
+        cells,
+        store,
+        workers=1,
+        resume=True,
+        on_result=None,
+        partial=PartialSummary(cells, path, interval_s=0.0),
+    )
+    assert report is None
+    assert [r.cell for r in results] == cells
+    written = json.loads(path.read_text())
+    assert (written["runs"], written["pending"]) == (2, 0)
