@@ -7,7 +7,9 @@ from the train's measured position and speed, under the ETCS limits it keeps, wh
   standstill), moves while the plan stops for it, or lies beyond the next stop again
   (:meth:`LegReplanner.follow_authority`, docs/decisions.md "Closing up to an EoA");
 - the train has fallen :data:`BEHIND_PLAN_M` behind its reference (:meth:`~LegReplanner.catch_up`);
-- a TSR is put in force or revoked (:meth:`~LegReplanner.under_new_limits`);
+- a TSR is put in force or revoked (:meth:`~LegReplanner.under_new_limits`), and each later
+  leg of the journey, planned under the old limits, as it begins
+  (:meth:`~LegReplanner.renew_stale_leg`);
 - a stop is skipped, a train hold released, a fallback cancelled
   (:meth:`~LegReplanner.to_next_stop`);
 - the trackside is lost while engaged (:meth:`~LegReplanner.fallback_stop`).
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import math
 
+from onboard.adf.journey import JourneyStop
 from onboard.adf.odp import InfeasibleLegError, OdpLeg, OdpPlan
 from onboard.adf.odp_energy import (
     LIMIT_BRAKING_MPS2,
@@ -92,11 +95,15 @@ class LegReplanner:
         self._eoa_planned_for_m: float | None = None
         """The EoA [m from the origin] the stop at ``eoa_stop_m`` was planned for."""
         self._catch_up_after_s = -math.inf
+        self._stale_stops: set[str] = set()
+        """The stops whose legs were planned before the MRSP last changed (a TSR put in force
+        or revoked): each is replanned under the limits in force as it becomes the next stop."""
 
     def start(self) -> None:
         """A new journey: on its plan, no fallback, no stop for the EoA."""
         self.fallback_active = False
         self.eoa_stop_m = None
+        self._stale_stops = set()
 
     def set_etcs_limits(
         self, permitted_speed_mps: float, eoa_ahead_m: float | None, *, position_m: float
@@ -172,9 +179,36 @@ class LegReplanner:
                 braking_mps2=MAX_BRAKING_MPS2,
             )
         self.eoa_stop_m = None
+        # The journey's later legs were planned under the old limits: each is redone as it
+        # begins (:meth:`renew_stale_leg`). A TSR on the ring is met again a lap on.
+        journey = self.progress.journey
+        self._stale_stops = {
+            later.timing_point_id for later in journey.stops if later.distance_m > stop.distance_m
+        }
+        return self._on_schedule_or_later(now_s, travelled, speed_mps, stop)
+
+    def renew_stale_leg(self, now_s: float, position_m: float, speed_mps: float) -> OdpPlan | None:
+        """The leg to the next stop replanned under the limits in force, once, when it was
+        planned before they changed (:meth:`under_new_limits`); None otherwise."""
+        if self.fallback_active or not self._stale_stops:
+            return None
+        stop = self.progress.next_stop(position_m)
+        if stop is None or stop.timing_point_id not in self._stale_stops:
+            return None
+        self._stale_stops.discard(stop.timing_point_id)
+        if self.eoa_stop_m is not None:
+            return None  # stopping for the EoA: its replan reads the limits in force
+        travelled = self.progress.travelled_m(position_m)
+        return self._on_schedule_or_later(now_s, travelled, speed_mps, stop)
+
+    def _on_schedule_or_later(
+        self, now_s: float, travelled_m: float, speed_mps: float, stop: JourneyStop
+    ) -> OdpPlan | None:
+        """The current leg on its schedule if it can be, else up to :data:`TSR_DELAYS_S`
+        late."""
         for delay_s in (0.0, *TSR_DELAYS_S):
             plan = self.replan(
-                now_s, travelled, speed_mps, stop.distance_m, arrival_s=stop.arrival_s + delay_s
+                now_s, travelled_m, speed_mps, stop.distance_m, arrival_s=stop.arrival_s + delay_s
             )
             if plan is not None:
                 return plan
@@ -195,8 +229,8 @@ class LegReplanner:
             return None
         if eoa is not None and eoa - EOA_STOP_MARGIN_M < stop.distance_m - STOP_TOLERANCE_M:
             target = eoa - EOA_STOP_MARGIN_M - ODOMETRY_SHARE * max(eoa - travelled, 0.0)
-            if self.eoa_stop_m is None and target - travelled > self._reach_m(
-                position_m, travelled, speed_mps, target
+            if self.eoa_stop_m is None and target - travelled > _authority_reach_m(
+                self.track_map, self.progress, position_m, travelled, speed_mps, target
             ):
                 return None  # not yet within reach: the plan in force runs on
             known, planned_for = self.eoa_stop_m, self._eoa_planned_for_m
@@ -221,22 +255,6 @@ class LegReplanner:
             self.eoa_stop_m = None
             return plan
         return None
-
-    def _reach_m(
-        self, position_m: float, travelled_m: float, speed_mps: float, target_m: float
-    ) -> float:
-        """How far ahead [m] a stop for the EoA at ``target_m`` must be planned for now: the
-        run of :data:`AUTHORITY_LOOKAHEAD_S` and the braking at :data:`AUTHORITY_BRAKING_MPS2`
-        from the highest speed the train may reach before it."""
-        sections = self.track_map.mrsp_window(
-            self.track_map.normalise(position_m), max(target_m - travelled_m, 0.0)
-        )
-        fastest = max((section.speed_mps for section in sections), default=speed_mps)
-        journey = self.progress.journey
-        if journey is not None and journey.plan.cap_mps is not None:
-            fastest = min(fastest, journey.plan.cap_mps)
-        fastest = max(fastest, speed_mps)
-        return fastest * AUTHORITY_LOOKAHEAD_S + fastest**2 / (2.0 * AUTHORITY_BRAKING_MPS2)
 
     def catch_up(
         self, plan: OdpPlan, now_s: float, position_m: float, speed_mps: float
@@ -349,3 +367,25 @@ class LegReplanner:
             return later
         self.progress.delay_departure(stop, later[0].start_s + delay_s)
         return [OdpLeg(leg.start_s + delay_s, leg.start_distance_m, leg.segment) for leg in later]
+
+
+def _authority_reach_m(
+    track_map: TrackMap,
+    progress: JourneyProgress,
+    position_m: float,
+    travelled_m: float,
+    speed_mps: float,
+    target_m: float,
+) -> float:
+    """How far ahead [m] a stop for the EoA at ``target_m`` must be planned for now: the run of
+    :data:`AUTHORITY_LOOKAHEAD_S` and the braking at :data:`AUTHORITY_BRAKING_MPS2` from the
+    highest speed the train may reach before it."""
+    sections = track_map.mrsp_window(
+        track_map.normalise(position_m), max(target_m - travelled_m, 0.0)
+    )
+    fastest = max((section.speed_mps for section in sections), default=speed_mps)
+    journey = progress.journey
+    if journey is not None and journey.plan.cap_mps is not None:
+        fastest = min(fastest, journey.plan.cap_mps)
+    fastest = max(fastest, speed_mps)
+    return fastest * AUTHORITY_LOOKAHEAD_S + fastest**2 / (2.0 * AUTHORITY_BRAKING_MPS2)

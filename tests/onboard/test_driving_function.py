@@ -420,6 +420,43 @@ def test_a_leg_replanned_while_the_train_stands_at_a_stop_leaves_after_its_dwell
     assert plan.end_s == pytest.approx(journey.plan.end_s)  # the rest of the journey on time
 
 
+def test_a_tsr_put_in_force_in_one_leg_is_planned_for_in_the_later_legs_it_lies_on() -> None:
+    """A TSR comes into force during the first leg (200 → east) over 2300–2500 m, on the second
+    leg (east → south): the first leg is replanned at once, and the second, planned under the
+    old limits at the journey's acceptance, as it begins (at east). Issue 18, gen-1-83: a TSR of
+    the first leg met again a lap on, in the third leg, whose plan ran at 58 km/h into it and
+    met ETCS's service brake twice."""
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    adf = DrivingFunction(ring, URV_PARAMETERS)
+    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
+    adf.start_journey(journey, 0.0, position_m=200.0)
+    adf.engage(0.0)
+    ring.add_temporary_speed_restriction(
+        TemporarySpeedRestriction(id="tsr-4", start_m=2300.0, end_m=2500.0, speed_mps=20 / 3.6)
+    )
+    adf.speed_limits_changed(60.0, position_m=600.0, speed_mps=10.0)
+    east = journey.stops[0]
+    at_east = 200.0 + east.distance_m
+
+    def second_leg_speeds() -> list[float]:
+        plan = adf.autonomous.plan  # type: ignore[union-attr]
+        samples = [plan.reference(320.0 + 0.5 * k) for k in range(460)]
+        return [speed for distance, speed in samples if 2100.0 <= distance <= 2300.0]
+
+    assert max(second_leg_speeds()) > 20 / 3.6 + 1.0  # still the old plan: the TSR unknown
+    adf.progress.update_served(at_east, speed_mps=0.0)  # arrived at east
+    assert adf.next_stop(at_east).timing_point_id == "south"  # type: ignore[union-attr]
+    replans = adf.replans
+    plan = adf.replanner.renew_stale_leg(302.0, at_east, 0.0)
+    assert plan is not None
+    adf._drive(plan)
+    assert adf.replans == replans + 1
+    assert second_leg_speeds()
+    assert max(second_leg_speeds()) <= 20 / 3.6
+    assert plan.legs[0].start_s == pytest.approx(adf.departure_s(east))
+    assert adf.replanner.renew_stale_leg(303.0, at_east, 0.0) is None  # once
+
+
 def test_behind_its_plan_the_train_keeps_under_a_target_speed_by_etcs_over_read() -> None:
     """Issue 18, gen-1-137: a TSR of 20 km/h 59 m ahead of where the journey starts; the train
     leaves 1.2 s after its reference and catches up at its ceiling. Up to the TSR ETCS's
