@@ -50,6 +50,20 @@ def _profile(planned: EnergyPlan, leg: int = 0) -> ProfileLeg:
     return segment
 
 
+def _ring_profile(points: tuple[m.TimingPoint, ...], track_data_version: str) -> m.JourneyProfile:
+    """A journey profile on the ring at the journey cap of these tests."""
+    return m.JourneyProfile(
+        vehicle_id="URV1",
+        journey_id="j",
+        version=1,
+        status="valid",
+        line_id="bologna-ring",
+        track_data_version=track_data_version,
+        max_speed_mps=RING_CAP_MPS,
+        timing_points=points,
+    )
+
+
 def _time_at_m(profile: ProfileLeg, distance_m: float) -> float:
     return float(np.interp(distance_m, profile.distances_m, profile.times_s))
 
@@ -106,16 +120,7 @@ def test_a_passing_timing_point_of_a_journey_profile_constrains_its_leg() -> Non
             end_of_journey=True,
         ),
     )
-    profile = m.JourneyProfile(
-        vehicle_id="URV1",
-        journey_id="j",
-        version=1,
-        status="valid",
-        line_id="bologna-ring",
-        track_data_version="x",
-        max_speed_mps=RING_CAP_MPS,
-        timing_points=points,
-    )
+    profile = _ring_profile(points, "x")
     journey = plan_journey(ring, URV_PARAMETERS, profile, start_chainage_m=200.0)
     assert [s.timing_point_id for s in journey.stops] == ["east", "south"]
     assert [p.timing_point_id for p in journey.passing] == ["pass"]
@@ -334,16 +339,7 @@ def test_a_passing_time_not_kept_is_an_event_of_the_journey_s_acceptance() -> No
             end_of_journey=True,
         ),
     )
-    profile = m.JourneyProfile(
-        vehicle_id="URV1",
-        journey_id="j",
-        version=1,
-        status="valid",
-        line_id="bologna-ring",
-        track_data_version=ring.version,
-        max_speed_mps=RING_CAP_MPS,
-        timing_points=points,
-    )
+    profile = _ring_profile(points, ring.version)
     assert onboard.review_journey(profile) == (True, None)
     events = onboard.take_events()
     missed = [event for event in events if event.code == "journey.passing_time_missed"]
