@@ -124,6 +124,7 @@ class ListenerCore:
             imu_rate_hz=self.config.imu_rate_hz,
             odometer_rate_hz=self.config.odometer_rate_hz,
             gps_rate_hz=self.config.gps_rate_hz,
+            order_tolerance_s=self.config.reorder_max_wait_s,
         )
         # Bound once: called for every sensor packet.
         self._epoch = self.time_base.epoch

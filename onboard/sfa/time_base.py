@@ -5,7 +5,11 @@ packets since that STROBE. Under loss a plain count lags (lost packets are not c
 STROBE lets the lag grow), so k is the larger of the count and a conservative bound from the
 SEQ_NO distance n to the STROBE, ⌊n · rate / N⌋ − 2, where N = 1 + Σ rates is the most packets
 a second of sensor time can carry. Without loss the count is exact and the bound never exceeds
-it (docs/sfa.md, "Time under loss"). A STROBE off the schedule of the last one (not the whole
+it (docs/sfa.md, "Time under loss"). Nor may a packet be earlier than one before it in SEQ_NO
+order, less ``order_tolerance_s``: a sensor of a low rate (the 1 Hz GPS) whose packet and the
+STROBE before it are both lost would otherwise count its next packet as the first of the older
+second, a whole period early, as no SEQ_NO bound can tell one second from the next for it. A
+STROBE off the schedule of the last one (not the whole
 number of seconds after it that its SEQ_NO distance spans) sets the time base only once the
 next STROBE confirms it: one corrupted byte of its time would otherwise move every epoch of its
 second.
@@ -25,6 +29,9 @@ from protocol.udp import SEQ_MODULO, SensorType
 
 __all__ = ["SensorTimeBase"]
 
+_GRID_EPSILON = 1e-9
+"""Periods within this of a grid point count as on it (rounding of the epochs' sums)."""
+
 
 class SensorTimeBase:
     """The STROBE the epochs count from, and each sensor's packets counted since it.
@@ -33,9 +40,21 @@ class SensorTimeBase:
     ----------
     imu_rate_hz, odometer_rate_hz, gps_rate_hz : float
         The sensors' rates [Hz].
+    order_tolerance_s : float
+        How far an epoch may lie ahead of its packet's true time [s]: a SEQ_NO corrupted a few
+        numbers ahead is released in its place (the reorder buffer's ``max_wait_s`` of
+        packets), and its epoch with it. A packet's epoch is at least the latest given since
+        the STROBE less this.
     """
 
-    def __init__(self, *, imu_rate_hz: float, odometer_rate_hz: float, gps_rate_hz: float) -> None:
+    def __init__(
+        self,
+        *,
+        imu_rate_hz: float,
+        odometer_rate_hz: float,
+        gps_rate_hz: float,
+        order_tolerance_s: float = 0.05,
+    ) -> None:
         self.periods_s = {
             SensorType.IMU: 1.0 / imu_rate_hz,
             SensorType.ODOMETER: 1.0 / odometer_rate_hz,
@@ -52,6 +71,9 @@ class SensorTimeBase:
         """(time, SEQ_NO) of the last STROBE dropped as off schedule: the next STROBE on its
         schedule confirms the new time base."""
         self._since_strobe = {SensorType.IMU: 0, SensorType.ODOMETER: 0, SensorType.GPS: 0}
+        self.order_tolerance_s = order_tolerance_s
+        self._latest_s = 0.0
+        """The latest epoch given since the STROBE [s]."""
 
     def epoch(self, sensor_type: SensorType, seq_no: int) -> float:
         """The epoch [s] of a sensor packet, counted as that sensor's next since the STROBE."""
@@ -61,8 +83,14 @@ class SensorTimeBase:
             distance = (seq_no - self.strobe_seq) % SEQ_MODULO
             bound = math.floor(distance / (period_s * self.packets_per_s)) - 2
             count = max(count, bound)
+        # Sent after the packets before it: not earlier than the latest epoch, on its own grid.
+        ahead_s = self._latest_s - self.order_tolerance_s - self.strobe_s
+        after = math.ceil(ahead_s / period_s - _GRID_EPSILON)
+        count = max(count, after)
         self._since_strobe[sensor_type] = count + 1
-        return self.strobe_s + count * period_s
+        epoch_s = self.strobe_s + count * period_s
+        self._latest_s = max(self._latest_s, epoch_s)
+        return epoch_s
 
     def strobe(self, strobe_s: float, seq_no: int) -> str | None:
         """A STROBE at ``strobe_s`` [s]: None when it sets the time base, else the reason it is
@@ -75,6 +103,7 @@ class SensorTimeBase:
         self.strobe_s = strobe_s
         self.strobe_seq = seq_no
         self._strobe_candidate = None
+        self._latest_s = strobe_s
         for key in self._since_strobe:
             self._since_strobe[key] = 0
         return None

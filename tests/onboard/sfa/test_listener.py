@@ -101,6 +101,26 @@ def test_the_time_base_counts_epochs_and_holds_a_strobe_off_schedule_until_confi
     assert time_base.strobe_s == 0.0
 
 
+def test_a_gps_fix_whose_strobe_and_last_fix_were_lost_keeps_its_own_second() -> None:
+    """gen-1-493 at 96 s: the GPS fix of one second and the STROBE of the next both lost, the
+    next fix counted as the first since the older STROBE read a second early (the SEQ_NO bound
+    cannot tell one second from the next at 1 Hz); taken as the position of 0.8 s before at
+    5 m/s, it pulled the estimate 2 m off with the odometer failed."""
+    time_base = SensorTimeBase(imu_rate_hz=100.0, odometer_rate_hz=20.0, gps_rate_hz=1.0)
+    assert time_base.strobe(96.0, 1) is None
+    # The GPS of 96 s (SEQ_NO 2) is lost; one IMU packet in six too.
+    imu_epochs = [time_base.epoch(SensorType.IMU, 3 + tick) for tick in range(100) if tick % 6 != 5]
+    assert imu_epochs[-1] <= 96.99 + 1e-9  # never ahead of the packet's own time
+    # The STROBE of 97 s (SEQ_NO 103) is lost: the GPS of 97 s comes next.
+    assert time_base.epoch(SensorType.GPS, 104) == pytest.approx(97.0)
+    # The IMU after it is pulled up too, to within the order's tolerance (0.05 s).
+    assert time_base.epoch(SensorType.IMU, 105) >= 96.95 - 1e-9
+    # A packet just after a STROBE keeps its count: the bound is no more than the order.
+    assert time_base.strobe(98.0, 205) is None
+    assert time_base.epoch(SensorType.GPS, 206) == 98.0
+    assert time_base.epoch(SensorType.ODOMETER, 207) == 98.0
+
+
 def test_under_loss_the_sequence_distance_keeps_the_epoch_from_lagging(ring: TrackMap) -> None:
     core = ListenerCore(ring, ListenerConfig(reorder_max_wait_s=0.0))
     core.feed(packet(SensorType.GROUND_TRUTH, 0, 0.0, 0.0, 0.0, 0.0), 0.0)
