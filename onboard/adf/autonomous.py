@@ -54,6 +54,20 @@ CEILING_MARGIN_MPS = 0.1 * MPS_PER_KMH
 """The speed reference is held this far under each stage's ceiling [m/s] (with the estimate's
 margin, where the plans hold it: 0.2 km/h under the limit less the under-read share): a
 reference on (or above) a ceiling makes the NLP degenerate."""
+COAST_LOOKAHEAD_STEPS = 10
+"""The stages ahead (2 s) over which the reference must coast for the train to coast."""
+COAST_FORCE_N = 50.0
+"""A reference whose own force (its acceleration, the resistance at its speed and the track's
+force, on the onboard's model) stays within this [N] coasts."""
+COAST_ENTRY_BAND = (1.0, 0.1)
+"""Position [m] and speed [m/s] errors against the plan within which the train coasts with it,
+under the gentle law of :data:`COAST_GAINS` rather than the NMPC."""
+COAST_EXIT_BAND = (3.0, 0.3)
+"""... and beyond which the NMPC takes over again (hysteresis)."""
+COAST_GAINS = (0.005, 0.1)
+"""The acceleration asked per m of position error [1/s²] and per m/s of speed error [1/s]
+while coasting with the plan: a closed loop of 20 s, damped 0.7, which leaves the estimate's
+noise (σ 0.008 m/s, correlated over 1–2 s) at about 15 N."""
 REACHABLE_BRAKING_MPS2 = 0.7
 REACHABLE_DELAY_S = 1.2
 """Full braking as the NMPC can reach it: its rate bound and the actuator's lag take about a
@@ -73,6 +87,8 @@ class AutonomousDriving:
         self._offsets_s = np.arange(1, config.horizon_steps + 1) * config.step_s
         self._step_s = config.step_s
         self.last_result: NmpcResult | None = None
+        self.coasting = False
+        """Whether the train coasts with the plan (the NMPC left out)."""
         self.permitted_speed_mps = math.inf
         """The ETCS permitted speed [m/s], a ceiling over the whole horizon."""
         self._sampled: tuple[float, list[float], list[float]] | None = None
@@ -187,14 +203,39 @@ class AutonomousDriving:
             # A brake holding a stopped vehicle exerts only a reaction, which the model (made
             # for motion) would read as a force pushing it backwards.
             applied_force_n = max(applied_force_n, 0.0)
+        reference = self.reference(now_s, speed_mps=speed_mps, distance_m=distance_m)
+        errors = (target_distance - distance_m, target_speed - speed_mps)
+        if self._coasts(reference, errors):
+            # The NMPC starts again from the force applied when it takes over.
+            self.controller.reset()
+            mass = self.model.mass_kg * (1.0 + self.model.rotating_mass_factor)
+            demand = mass * (COAST_GAINS[0] * errors[0] + COAST_GAINS[1] * errors[1])
+            return min(demand, self.stopping_force_n(now_s, distance_m, speed_mps))
         result = self.controller.solve(
             position_m=distance_m,
             speed_mps=speed_mps,
             applied_force_n=applied_force_n,
-            reference=self.reference(now_s, speed_mps=speed_mps, distance_m=distance_m),
+            reference=reference,
         )
         self.last_result = result
         return min(result.force_n, self.stopping_force_n(now_s, distance_m, speed_mps))
+
+    def _coasts(self, reference: NmpcReference, errors: tuple[float, float]) -> bool:
+        """Whether the train coasts now: the plan coasts over the next
+        :data:`COAST_LOOKAHEAD_STEPS` and the train keeps within a band of it.
+
+        Where the plan coasts the NMPC, which tracks it to centimetres, answered the truth's
+        small departures from the onboard's model and the estimate's noise with ±100–300 N,
+        alternately traction and brake: 0.056 kWh of the 0.76 of bologna-ring's journey, where
+        the plan takes none. Coasting with the plan within a band, the train runs on the true
+        train's own coasting; the NMPC corrects only what leaves the band."""
+        band = COAST_EXIT_BAND if self.coasting else COAST_ENTRY_BAND
+        self.coasting = (
+            abs(errors[0]) <= band[0]
+            and abs(errors[1]) <= band[1]
+            and _reference_coasts(reference, self.model, self._step_s)
+        )
+        return self.coasting
 
     def stopping_force_n(self, now_s: float, distance_m: float, speed_mps: float) -> float:
         """A ceiling on the demand in the final approach [N]: where the reference comes to rest
@@ -229,3 +270,21 @@ class AutonomousDriving:
         )
         track = self._track_force_n(self.plan.chainage_m(distance_m))
         return min(resistance + track - mass * needed_mps2, 0.0)
+
+
+def _reference_coasts(reference: NmpcReference, model: PointMassParameters, step_s: float) -> bool:
+    """Whether the reference's own force stays within :data:`COAST_FORCE_N` over the next
+    :data:`COAST_LOOKAHEAD_STEPS` stages, the train moving."""
+    speeds = reference.speed_mps[: COAST_LOOKAHEAD_STEPS + 1]
+    if speeds.min() <= STANDSTILL_MPS:
+        return False
+    mass = model.mass_kg * (1.0 + model.rotating_mass_factor)
+    v = speeds[:-1]
+    forces = (
+        mass * np.diff(speeds) / step_s
+        + model.davis_a_n
+        + model.davis_b_n_per_mps * v
+        + model.davis_c_n_per_mps2 * v * v
+        + reference.track_force_n[:COAST_LOOKAHEAD_STEPS]
+    )
+    return bool(np.abs(forces).max() <= COAST_FORCE_N)

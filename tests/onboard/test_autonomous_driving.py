@@ -142,3 +142,50 @@ def test_the_final_approach_takes_a_reference_ending_a_hair_below_zero() -> None
     driving.stopping_force_n(now_s - 0.2, distance_m, speed_mps)
     force = driving.stopping_force_n(now_s, distance_m, speed_mps + 1.0)
     assert -URV_PARAMETERS.max_brake_force_n <= force < 0.0
+
+
+def test_where_the_plan_coasts_the_train_coasts_and_leaves_the_estimates_noise_alone() -> None:
+    """bologna-ring's whole stack (issue 22): where the energy plan coasts, the NMPC answered the
+    fused speed's noise (σ 0.008 m/s) with ±100–300 N, alternately traction and brake, 0.056 kWh
+    the plan does not take. Within a band of the plan the gentle coasting law answers it with
+    tens of newtons; beyond the band, or where the plan stops coasting, the NMPC drives again."""
+    from onboard.adf.autonomous import COAST_EXIT_BAND, AutonomousDriving
+
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    plan, _ = plan_energy_legs(
+        ring, URV_PARAMETERS, start_chainage_m=START_M, stops=STOPS, cap_mps=CAP_MPS
+    )
+    driving = AutonomousDriving(plan, URV_PARAMETERS, NmpcController(URV_PARAMETERS))
+    coasting_times = [
+        t for t in np.arange(60.0, 280.0, 0.2) if _on_plan_coasts(driving, plan, float(t))
+    ]
+    assert len(coasting_times) > 200  # the first leg coasts for most of a minute at least
+    rng = np.random.default_rng(7)
+    demands = []
+    for now_s in coasting_times[:100]:
+        distance_m, speed_mps = plan.reference(now_s)
+        demands.append(
+            driving.force_n(
+                now_s,
+                distance_m=distance_m + rng.normal(0.0, 0.1),
+                speed_mps=speed_mps + rng.normal(0.0, 0.008),
+                applied_force_n=0.0,
+            )
+        )
+        assert driving.coasting
+    assert float(np.abs(demands).max()) < 60.0
+    # Beyond the band the NMPC takes over, and brakes a train too fast for the plan.
+    now_s = coasting_times[100]
+    distance_m, speed_mps = plan.reference(now_s)
+    fast_mps = speed_mps + COAST_EXIT_BAND[1] + 0.2
+    demand = driving.force_n(now_s, distance_m=distance_m, speed_mps=fast_mps, applied_force_n=0.0)
+    assert not driving.coasting
+    assert demand < -500.0
+
+
+def _on_plan_coasts(driving: object, plan: object, now_s: float) -> bool:
+    from onboard.adf.autonomous import _reference_coasts
+
+    distance_m, speed_mps = plan.reference(now_s)  # type: ignore[attr-defined]
+    reference = driving.reference(now_s, speed_mps=speed_mps, distance_m=distance_m)  # type: ignore[attr-defined]
+    return _reference_coasts(reference, URV_PARAMETERS, 0.2)
