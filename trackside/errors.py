@@ -52,6 +52,7 @@ __all__ = [
     "RbcScenarioError",
     "TracksideError",
     "VehicleLinkError",
+    "VehicleNotPlacedError",
     "VehicleTimeoutError",
 ]
 
@@ -111,6 +112,10 @@ class NoMovementAuthorityError(NotFoundError):
 
 class MovementAuthorityRefusedError(InvalidRequestError):
     """The RBC cannot issue or change the movement authority as asked; nothing was sent."""
+
+
+class VehicleNotPlacedError(MovementAuthorityRefusedError):
+    """The RBC separates the trains on the line and no report has placed this one yet."""
 
 
 class EndOfAuthorityBehindVehicleError(MovementAuthorityRefusedError):
