@@ -9,6 +9,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from protocol import messages as m
+from tests.trackside.reports import status_report
 from trackside.separation import MovingBlock, TrainExtent, extent_from_report
 
 RING_M = 5700.0
@@ -18,20 +19,7 @@ LENGTH_M = 6.0
 def report(
     vehicle_id: str, position_m: float, *, confidence_m: float | None = 2.0, line_id: str = "ring"
 ) -> m.StatusReport:
-    return m.StatusReport(
-        vehicle_id=vehicle_id,
-        seq=0,
-        sim_time_s=0.0,
-        line_id=line_id,
-        position_m=position_m,
-        speed_mps=5.0,
-        acceleration_mps2=0.0,
-        traction_force_n=0.0,
-        ato_state=m.AtoState.ENGAGED,
-        etcs_mode=m.EtcsMode.FS,
-        sc_state=m.ScState.AD,
-        position_confidence_m=confidence_m,
-    )
+    return status_report(vehicle_id, position_m, line_id=line_id, confidence_m=confidence_m)
 
 
 def place(block: MovingBlock, vehicle_id: str, position_m: float, **kwargs: object) -> None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from protocol import messages as m
+from tests.trackside.reports import status_report
 from trackside.errors import VehicleNotPlacedError
 from trackside.rbc import MovementAuthorityIssue, RbcEmulator
 from trackside.separation import MovingBlock
@@ -25,23 +26,6 @@ class Reports:
         return self.latest.get(vehicle_id)
 
 
-def status(vehicle_id: str, position_m: float, line_id: str) -> m.StatusReport:
-    return m.StatusReport(
-        vehicle_id=vehicle_id,
-        seq=0,
-        sim_time_s=0.0,
-        line_id=line_id,
-        position_m=position_m,
-        speed_mps=5.0,
-        acceleration_mps2=0.0,
-        traction_force_n=0.0,
-        ato_state=m.AtoState.ENGAGED,
-        etcs_mode=m.EtcsMode.FS,
-        sc_state=m.ScState.AD,
-        position_confidence_m=2.0,
-    )
-
-
 class Line:
     """An RBC with a supervisor, and the trains' reports fed to both."""
 
@@ -57,7 +41,7 @@ class Line:
         )
 
     def report(self, vehicle_id: str, position_m: float) -> None:
-        report = status(vehicle_id, position_m, self.line_id)
+        report = status_report(vehicle_id, position_m, line_id=self.line_id)
         self.reports.latest[vehicle_id] = report
         self.supervisor.on_report(report, 0.0)
 
