@@ -8,6 +8,7 @@ import pytest
 
 from protocol import TransportError, ZenohSettings, open_session
 from protocol import messages as m
+from tests.trackside.reports import status_report
 from trackside.errors import (
     EndOfAuthorityBehindVehicleError,
     MovementAuthorityRefusedError,
@@ -31,19 +32,7 @@ class Clock:
 
 
 def _status(line_id: str, position_m: float) -> m.StatusReport:
-    return m.StatusReport(
-        vehicle_id="URV1",
-        seq=0,
-        sim_time_s=0.0,
-        line_id=line_id,
-        position_m=position_m,
-        speed_mps=5.0,
-        acceleration_mps2=0.0,
-        traction_force_n=0.0,
-        ato_state=m.AtoState.ENGAGED,
-        etcs_mode=m.EtcsMode.FS,
-        sc_state=m.ScState.AD,
-    )
+    return status_report("URV1", position_m, line_id=line_id, confidence_m=None)
 
 
 class Positions:
