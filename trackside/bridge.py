@@ -105,6 +105,7 @@ class ZenohBridge:
         self._alive: set[str] = set()
         self._listeners: list[ChangeListener] = []
         self._status_observers: list[StatusObserver] = []
+        self._report_supervisor: StatusObserver | None = None
         self._event_observers: list[EventObserver] = []
         self._status = TypedSubscriber(session, STATUS, on_message=self._on_status, clock=clock)
         self._liveliness = LivelinessWatcher(
@@ -179,6 +180,11 @@ class ZenohBridge:
             if event is not None:
                 self._event_observers.append(event)
 
+    def supervise_reports(self, supervisor: StatusObserver) -> None:
+        """Call ``supervisor`` with every report of an open session before it is acknowledged
+        (on Zenoh's thread): the RBC's separation, whose changes must go out first."""
+        self._report_supervisor = supervisor
+
     def _on_event(self, key: str, event: m.Event) -> None:
         if event.vehicle_id != EVENT.parse(key)["vehicle"]:
             return
@@ -217,6 +223,12 @@ class ZenohBridge:
         if report.vehicle_id == STATUS.parse(key)["vehicle"]:
             with self._session_lock:
                 ack = self.sessions.on_status(report, report.sim_time_s)
+            supervisor = self._report_supervisor
+            if ack is not None and supervisor is not None:
+                # Before the acknowledgement: what the report changes (an MA of the train
+                # behind) is published ahead of it, so a lockstep onboard that waits for the
+                # acknowledgement has it by then.
+                supervisor(report)
             if ack is not None:
                 try:
                     self._publisher(STATUS_ACK, report.vehicle_id).put(ack)
@@ -267,6 +279,12 @@ class ZenohBridge:
     def session_open(self, vehicle_id: str) -> bool:
         with self._session_lock:
             return vehicle_id in self.sessions.sessions
+
+    def train_length_m(self, vehicle_id: str) -> float | None:
+        """The train's length from its open session's handshake [m]; None without one."""
+        with self._session_lock:
+            session = self.sessions.sessions.get(vehicle_id)
+            return None if session is None else session.train_length_m
 
     def terminate_session(self, vehicle_id: str, reason: str) -> bool:
         """End a vehicle's session from the trackside (SESSTermReq)."""

@@ -56,6 +56,20 @@ class Settings(BaseSettings):
         default=None,
         description="RBC scenario script (YAML, JSON or TOML) run from start-up, on wall time",
     )
+    separation_margin_m: float | None = Field(
+        default=None,
+        ge=0.0,
+        le=10_000.0,
+        description="The RBC separates the trains on a line (a moving block): each MA ends this "
+        "far behind the min safe rear end of the train ahead [m]; unset: off (docs/decisions.md, "
+        "'Issue 23: separation on a shared line')",
+    )
+    separation_extension_step_m: float = Field(
+        default=50.0,
+        ge=0.0,
+        le=10_000.0,
+        description="An MA held behind a train is extended by at least this much at a time [m]",
+    )
 
     command_timeout_s: float = Field(
         default=3.0, gt=0, le=30.0, description="Wait for a vehicle's command acknowledgement [s]"

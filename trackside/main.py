@@ -50,6 +50,8 @@ from trackside.rbc_scenario import (
     load_scenario,
 )
 from trackside.recorder import Recorder
+from trackside.separation import MovingBlock
+from trackside.separation_supervisor import SeparationSupervisor
 from trackside.services import audit, users
 from trackside.services import lines as lines_service
 from trackside.services.commands import CommandService
@@ -265,6 +267,53 @@ def _start_rbc(
     return rbc_emulator, scenario
 
 
+def _start_separation(
+    app: FastAPI,
+    settings: Settings,
+    factory: sessionmaker[Session],
+    bridge: ZenohBridge,
+    rbc_emulator: RbcEmulator,
+) -> None:
+    """The RBC's separation of the trains on a line, when ``separation_margin_m`` is set: fed
+    with every report of an open session before it is acknowledged, the train's length from its
+    handshake."""
+    app.state.separation = None
+    if settings.separation_margin_m is None:
+        return
+    block = MovingBlock(margin_m=settings.separation_margin_m, ring_length_m=_ring_lengths(factory))
+    supervisor = SeparationSupervisor(
+        rbc_emulator,
+        block,
+        extension_step_m=settings.separation_extension_step_m,
+        lengths=bridge.train_length_m,
+    )
+    app.state.separation = supervisor
+
+    def supervise(report: StatusReport) -> None:
+        try:
+            supervisor.on_report(report, rbc_emulator.clock())
+        except Exception:  # an MA change refused or not published: the next report tries again
+            _log.exception("separation: the report of %s was not taken", report.vehicle_id)
+
+    bridge.supervise_reports(supervise)
+
+
+def _ring_lengths(factory: sessionmaker[Session]) -> Callable[[str], float | None]:
+    """Each line's length if it is a ring, read once per stored line (the separation asks for
+    it on every report; a line not stored yet is asked for again)."""
+    known: dict[str, float | None] = {}
+
+    def ring_length_m(line_id: str) -> float | None:
+        if line_id not in known:
+            info = _line_info(factory, line_id)
+            if info is None:
+                return None
+            known[line_id] = info.length_m if info.ring else None
+        return known[line_id]
+
+    return ring_length_m
+
+
 def _lifespan(settings: Settings, zenoh_session: zenoh.Session | None) -> Lifespan:
     """Start-up and shutdown of the service: the database, Zenoh, the bridge, the RBC."""
 
@@ -288,6 +337,7 @@ def _lifespan(settings: Settings, zenoh_session: zenoh.Session | None) -> Lifesp
             operator = _simulated_operator(settings, bridge, recorder)
             app.state.simulated_operator = operator
             rbc_emulator, scenario = _start_rbc(app, session, factory, bridge, script)
+            _start_separation(app, settings, factory, bridge, rbc_emulator)
             # What start-up built lives as long as the service: keep it out of the cyclic
             # collector's full passes, which otherwise stall requests for tens of ms.
             gc.freeze()

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from protocol import messages as m
@@ -78,18 +79,17 @@ class MovingBlock:
     margin_m
         The distance [m] kept between an EoA and the min safe rear end of the train ahead.
     ring_length_m
-        Each ring line's length [m] by line id: "ahead" wraps there. A line not named is
-        open.
+        A ring line's length [m] by its id, None for an open line: "ahead" wraps there.
+        Without it every line is open.
     """
 
-    def __init__(self, *, margin_m: float, ring_length_m: dict[str, float] | None = None) -> None:
+    def __init__(
+        self, *, margin_m: float, ring_length_m: Callable[[str], float | None] | None = None
+    ) -> None:
         if not (math.isfinite(margin_m) and margin_m >= 0.0):
             raise ValueError(f"margin {margin_m} m must be finite and ≥ 0")
         self.margin_m = margin_m
-        self._ring_length_m = dict(ring_length_m or {})
-        for line_id, length in self._ring_length_m.items():
-            if not (math.isfinite(length) and length > 0.0):
-                raise ValueError(f"ring {line_id!r}: length {length} m must be positive")
+        self._ring_length = ring_length_m
         self._lock = threading.Lock()
         self._extents: dict[str, TrainExtent] = {}
 
@@ -165,10 +165,23 @@ class MovingBlock:
 
     # -- internals ----------------------------------------------------------------------------
 
+    def ring_length_m(self, line_id: str) -> float | None:
+        """The line's length [m] if it is a ring; None for an open line.
+
+        Raises
+        ------
+        ValueError
+            If the lookup gives a length that is not finite and positive.
+        """
+        length = None if self._ring_length is None else self._ring_length(line_id)
+        if length is not None and not (math.isfinite(length) and length > 0.0):
+            raise ValueError(f"ring {line_id!r}: length {length} m must be positive")
+        return length
+
     def ahead_m(self, line_id: str, from_m: float, to_m: float) -> float:
         """How far ``to_m`` lies ahead of ``from_m`` on the line [m]: on a ring, within one lap
         ([0, length)); on an open line, negative behind."""
-        length = self._ring_length_m.get(line_id)
+        length = self.ring_length_m(line_id)
         if length is None:
             return to_m - from_m
         return (to_m - from_m) % length
@@ -177,7 +190,7 @@ class MovingBlock:
         """As :meth:`_ahead_m`, but on a ring within (−½ lap, ½ lap]: a rear a little behind
         the front is an overlap, not a train almost a lap ahead."""
         ahead = self.ahead_m(line_id, from_m, to_m)
-        length = self._ring_length_m.get(line_id)
+        length = self.ring_length_m(line_id)
         if length is not None and ahead > 0.5 * length:
             ahead -= length
         return ahead

@@ -31,6 +31,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+from collections.abc import Callable
 
 from protocol import messages as m
 from trackside.errors import EndOfAuthorityBehindVehicleError, VehicleNotPlacedError
@@ -53,10 +54,18 @@ class SeparationSupervisor:
         The trains on the lines, fed by :meth:`on_report`.
     extension_step_m
         The least an MA is extended by while the train is held short of its route [m].
+    lengths
+        A train's length [m] when :meth:`register` was not told it (the service: from the
+        train's session handshake); None when unknown, and the train's reports are ignored.
     """
 
     def __init__(
-        self, rbc: RbcEmulator, block: MovingBlock, *, extension_step_m: float = 50.0
+        self,
+        rbc: RbcEmulator,
+        block: MovingBlock,
+        *,
+        extension_step_m: float = 50.0,
+        lengths: Callable[[str], float | None] | None = None,
     ) -> None:
         if not (math.isfinite(extension_step_m) and extension_step_m >= 0.0):
             raise ValueError(f"extension step {extension_step_m} m must be finite and ≥ 0")
@@ -66,6 +75,7 @@ class SeparationSupervisor:
         self._lock = threading.Lock()
         self._routes: dict[str, MovementAuthorityIssue] = {}
         self._lengths_m: dict[str, float] = {}
+        self._lengths = lengths
 
     # -- the trains ---------------------------------------------------------------------------
 
@@ -81,6 +91,8 @@ class SeparationSupervisor:
         the limits (extend, shorten or revoke). Reports of unregistered trains are ignored."""
         with self._lock:
             length = self._lengths_m.get(report.vehicle_id)
+            if length is None and self._lengths is not None:
+                length = self._lengths(report.vehicle_id)
             if length is None:
                 return
             self.block.update(
@@ -94,6 +106,12 @@ class SeparationSupervisor:
         no train behind it, and its route is forgotten."""
         with self._lock:
             self.block.remove(vehicle_id)
+            self._routes.pop(vehicle_id, None)
+
+    def forget_route(self, vehicle_id: str) -> None:
+        """The train's MA was revoked: nothing extends it again (the train stays on the line
+        and goes on bounding the train behind it)."""
+        with self._lock:
             self._routes.pop(vehicle_id, None)
 
     # -- the MAs ------------------------------------------------------------------------------

@@ -37,6 +37,8 @@ class TracksideSession:
     version: int
     opened_s: float
     last_report_s: float
+    train_length_m: float | None = None
+    """The train's length from its handshake [m] (its train data): the RBC's separation."""
     last_seq: int = -1
     reports: int = 0
     session_id: str = field(default_factory=lambda: secrets.token_urlsafe(12))
@@ -74,7 +76,11 @@ class SessionManager:
             return m.SessionReject(trackside_id=self.trackside_id, reason=reason)
         version = max(common)
         self.sessions[request.vehicle_id] = TracksideSession(
-            request.vehicle_id, version, opened_s=now_s, last_report_s=now_s
+            request.vehicle_id,
+            version,
+            opened_s=now_s,
+            last_report_s=now_s,
+            train_length_m=request.train_length_m,
         )
         return m.SessionAccept(
             trackside_id=self.trackside_id,

@@ -65,7 +65,7 @@ def test_the_eoa_ends_the_margin_behind_the_rear_of_the_train_ahead() -> None:
 
 
 def test_on_a_ring_ahead_wraps_past_the_end_of_the_lap() -> None:
-    block = MovingBlock(margin_m=20.0, ring_length_m={"ring": RING_M})
+    block = MovingBlock(margin_m=20.0, ring_length_m={"ring": RING_M}.get)
     place(block, "URV1", 5600.0)
     place(block, "URV2", 150.0)
     # URV2's rear (142) is 5700 − 5602 + 142 = 240 m ahead of URV1's front (5602).
@@ -86,7 +86,7 @@ def test_trains_on_other_lines_do_not_bound_each_other() -> None:
 def test_overlapping_reports_leave_no_room_at_all() -> None:
     """Two reports that cannot both be right (intervals of 40 m, 10 m apart): the follower
     may not go beyond its own front end."""
-    block = MovingBlock(margin_m=0.0, ring_length_m={"ring": RING_M})
+    block = MovingBlock(margin_m=0.0, ring_length_m={"ring": RING_M}.get)
     place(block, "URV1", 100.0, confidence_m=40.0)
     place(block, "URV2", 110.0, confidence_m=40.0)
     assert block.gap_m("URV1") < 0.0
@@ -121,8 +121,9 @@ def test_a_silent_train_still_bounds_the_train_behind_it() -> None:
 def test_bad_parameters_are_refused() -> None:
     with pytest.raises(ValueError, match="margin"):
         MovingBlock(margin_m=-1.0)
+    broken = MovingBlock(margin_m=1.0, ring_length_m={"ring": 0.0}.get)
     with pytest.raises(ValueError, match="length"):
-        MovingBlock(margin_m=1.0, ring_length_m={"ring": 0.0})
+        broken.ring_length_m("ring")
 
 
 @given(
@@ -138,7 +139,7 @@ def test_on_a_ring_every_limit_lies_behind_the_rear_of_the_train_ahead(
 ) -> None:
     """Whatever the places, each train's limit lies the margin behind its leader's rear end,
     and the leaders form one cycle round the ring (each train leads exactly one other)."""
-    block = MovingBlock(margin_m=25.0, ring_length_m={"ring": RING_M})
+    block = MovingBlock(margin_m=25.0, ring_length_m={"ring": RING_M}.get)
     for index, position in enumerate(decimetres):
         place(block, f"T{index}", position / 10.0, confidence_m=1.0)
     extents = {e.vehicle_id: e for e in block.trains("ring")}

@@ -37,7 +37,7 @@ class Line:
         self.rbc.add_listener(self.heard.append)
         rings = {} if ring_m is None else {line_id: ring_m}
         self.supervisor = SeparationSupervisor(
-            self.rbc, MovingBlock(margin_m=50.0, ring_length_m=rings), extension_step_m=50.0
+            self.rbc, MovingBlock(margin_m=50.0, ring_length_m=rings.get), extension_step_m=50.0
         )
 
     def report(self, vehicle_id: str, position_m: float) -> None:

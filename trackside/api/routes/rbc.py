@@ -16,9 +16,11 @@ from protocol import messages as m
 from protocol.units import MPS_PER_KMH
 from trackside.api.deps import AdminUser, AuditDep, ObserverUser
 from trackside.api.schemas import MovementAuthorityPublic, RefusedPublic, SpeedRestrictionCreate
+from trackside.errors import ConflictError
 from trackside.models import User
 from trackside.rbc import MovementAuthorityIssue, RbcEmulator
 from trackside.rbc_rules import speed_restriction
+from trackside.separation_supervisor import SeparationSupervisor
 
 __all__ = ["router"]
 
@@ -35,6 +37,23 @@ def get_rbc(request: Request) -> RbcEmulator:
 
 
 RbcDep = Annotated[RbcEmulator, Depends(get_rbc)]
+
+
+def get_separation(request: Request) -> SeparationSupervisor | None:
+    """The RBC's separation of the trains, when the trackside runs one."""
+    separation: SeparationSupervisor | None = getattr(request.app.state, "separation", None)
+    return separation
+
+
+SeparationDep = Annotated[SeparationSupervisor | None, Depends(get_separation)]
+
+
+def _manual_change_refused(separation: SeparationSupervisor | None) -> None:
+    if separation is not None:
+        raise ConflictError(
+            "the RBC separates the trains here: it extends and shortens the MAs itself; "
+            "give the train a new route with POST /api/v1/rbc/{vehicle}/ma"
+        )
 
 
 NOT_FOUND: dict[int | str, dict[str, Any]] = {
@@ -96,14 +115,21 @@ def issue_movement_authority(
     vehicle_id: VehiclePath,
     body: MovementAuthorityIssue,
     rbc: RbcDep,
+    separation: SeparationDep,
     user: AdminUser,
     trail: AuditDep,
 ) -> MovementAuthorityPublic:
-    """Issue a new MA to the vehicle (admin only), replacing any it holds."""
+    """Issue a new MA to the vehicle (admin only), replacing any it holds. When the RBC
+    separates the trains, the body is the train's route and the MA ends short of the train
+    ahead (extended as it moves on)."""
     request = body.model_dump(mode="json")
-    message = _changed(
-        trail, user, vehicle_id, "rbc.ma_issue", request, lambda: rbc.issue(vehicle_id, body)
-    )
+
+    def issue() -> m.MovementAuthorityMessage:
+        if separation is None:
+            return rbc.issue(vehicle_id, body)
+        return separation.request(vehicle_id, body)
+
+    message = _changed(trail, user, vehicle_id, "rbc.ma_issue", request, issue)
     return _public(rbc, message)
 
 
@@ -112,14 +138,19 @@ def extend_movement_authority(
     vehicle_id: VehiclePath,
     body: m.MovementAuthorityEnd,
     rbc: RbcDep,
+    separation: SeparationDep,
     user: AdminUser,
     trail: AuditDep,
 ) -> MovementAuthorityPublic:
-    """Move the EoA forward, with the new end's danger point, overlap and release speed."""
+    """Move the EoA forward, with the new end's danger point, overlap and release speed (409
+    when the RBC separates the trains: it extends the MAs itself)."""
     request = body.model_dump(mode="json")
-    message = _changed(
-        trail, user, vehicle_id, "rbc.ma_extend", request, lambda: rbc.extend(vehicle_id, body)
-    )
+
+    def extend() -> m.MovementAuthorityMessage:
+        _manual_change_refused(separation)
+        return rbc.extend(vehicle_id, body)
+
+    message = _changed(trail, user, vehicle_id, "rbc.ma_extend", request, extend)
     return _public(rbc, message)
 
 
@@ -128,23 +159,34 @@ def shorten_movement_authority(
     vehicle_id: VehiclePath,
     body: m.MovementAuthorityEnd,
     rbc: RbcDep,
+    separation: SeparationDep,
     user: AdminUser,
     trail: AuditDep,
 ) -> MovementAuthorityPublic:
-    """Move the EoA back; refused (409) if it would fall at or behind the vehicle's front end."""
+    """Move the EoA back; refused (409) if it would fall at or behind the vehicle's front end,
+    or when the RBC separates the trains (it shortens the MAs itself)."""
     request = body.model_dump(mode="json")
-    message = _changed(
-        trail, user, vehicle_id, "rbc.ma_shorten", request, lambda: rbc.shorten(vehicle_id, body)
-    )
+
+    def shorten() -> m.MovementAuthorityMessage:
+        _manual_change_refused(separation)
+        return rbc.shorten(vehicle_id, body)
+
+    message = _changed(trail, user, vehicle_id, "rbc.ma_shorten", request, shorten)
     return _public(rbc, message)
 
 
 @router.delete("/{vehicle_id}/ma", responses={**NOT_FOUND, **REFUSED})
 def revoke_movement_authority(
-    vehicle_id: VehiclePath, rbc: RbcDep, user: AdminUser, trail: AuditDep
+    vehicle_id: VehiclePath,
+    rbc: RbcDep,
+    separation: SeparationDep,
+    user: AdminUser,
+    trail: AuditDep,
 ) -> MovementAuthorityPublic:
     """Revoke the vehicle's MA (admin only); the onboard applies it as an emergency stop."""
     message = _changed(trail, user, vehicle_id, "rbc.ma_revoke", {}, lambda: rbc.revoke(vehicle_id))
+    if separation is not None:
+        separation.forget_route(vehicle_id)
     return _public(rbc, message)
 
 
