@@ -9,7 +9,7 @@ The ATO-TS side of the session (``trackside.session``): handshakes are answered 
 session ends with the vehicle's liveliness, with a termination from either side, or when a
 report comes after a gap longer than the response timeout in the onboard's simulated time.
 Journey profiles go out with :meth:`ZenohBridge.send_journey_profile`, which waits for the
-onboard's acknowledgement.
+onboard's acknowledgement (:mod:`trackside.journey_link`).
 """
 
 from __future__ import annotations
@@ -38,8 +38,6 @@ from protocol.registry import (
     ALIVE_ONBOARD,
     ALIVE_TRACKSIDE,
     EVENT,
-    JOURNEY_PROFILE,
-    JOURNEY_PROFILE_ACK,
     LINE_DOCUMENT,
     LINE_VERSION,
     SESSION,
@@ -49,6 +47,7 @@ from protocol.registry import (
     Topic,
 )
 from trackside.command_link import send_command, send_command_async
+from trackside.journey_link import JourneyProfileLink
 from trackside.session import SessionManager
 
 __all__ = ["VehicleSnapshot", "ZenohBridge"]
@@ -96,8 +95,6 @@ class ZenohBridge:
         self._closed = False
         """Set by :meth:`close`: a callback still in flight then publishes nothing."""
         self._publishers: dict[tuple[str, str], TypedPublisher[Any]] = {}
-        self._acks: dict[str, list[m.JourneyProfileAck]] = {}
-        self._acks_changed = threading.Condition()
         self._lock = threading.Lock()
         self._known: set[str] = set()
         self.bad_liveliness = 0
@@ -121,9 +118,7 @@ class ZenohBridge:
         self._terminations = TypedSubscriber(
             session, SESSION_TERMINATION, on_message=self._on_termination, vehicle="*"
         )
-        self._journey_acks = TypedSubscriber(
-            session, JOURNEY_PROFILE_ACK, on_message=self._on_journey_ack, vehicle="*"
-        )
+        self._journeys = JourneyProfileLink(session, publisher=self._publisher, seal=self.seal)
         self._events = TypedSubscriber(
             session, EVENT, on_message=self._on_event, max_queue=1, vehicle="*"
         )
@@ -157,8 +152,9 @@ class ZenohBridge:
 
     def topic_stats(self) -> dict[str, TopicStats]:
         """Each subscribed topic's counters (received, bad payloads, queue overflows)."""
-        subscribers = (self._status, self._events, self._journey_acks, self._terminations)
-        return {subscriber.topic.name: subscriber.stats for subscriber in subscribers}
+        subscribers = (self._status, self._events, self._terminations)
+        stats = {subscriber.topic.name: subscriber.stats for subscriber in subscribers}
+        return stats | {self._journeys.topic_name: self._journeys.stats}
 
     def add_listener(self, listener: ChangeListener) -> None:
         with self._lock:
@@ -298,37 +294,12 @@ class ZenohBridge:
 
     # -- journey profiles ----------------------------------------------------------------------
 
-    def _on_journey_ack(self, key: str, ack: m.JourneyProfileAck) -> None:
-        if ack.vehicle_id != JOURNEY_PROFILE_ACK.parse(key)["vehicle"]:
-            return
-        with self._acks_changed:
-            self._acks.setdefault(ack.vehicle_id, []).append(ack)
-            self._acks_changed.notify_all()
-
     def send_journey_profile(
         self, profile: m.JourneyProfile, *, timeout_s: float = 5.0
     ) -> m.JourneyProfileAck | None:
         """Send a journey profile and wait for its acknowledgement (or rejection); ``None``
-        when none came within ``timeout_s`` of wall time."""
-        vehicle = profile.vehicle_id
-        profile = profile.model_copy(update={"freshness": self.seal(vehicle)})
-        with self._acks_changed:
-            self._acks.pop(vehicle, None)
-        self._publisher(JOURNEY_PROFILE, vehicle).put(profile)
-        deadline = time.monotonic() + timeout_s
-
-        def answered() -> m.JourneyProfileAck | None:
-            for ack in self._acks.get(vehicle, []):
-                if (ack.journey_id, ack.version) == (profile.journey_id, profile.version):
-                    return ack
-            return None
-
-        with self._acks_changed:
-            while (ack := answered()) is None:
-                left = deadline - time.monotonic()
-                if left <= 0 or not self._acks_changed.wait(left):
-                    return answered()
-            return ack
+        when none came within ``timeout_s`` of wall time (:class:`JourneyProfileLink`)."""
+        return self._journeys.send(profile, timeout_s=timeout_s)
 
     # -- commands ------------------------------------------------------------------------------
 
@@ -385,7 +356,7 @@ class ZenohBridge:
         self._events.close()
         self._handshakes.close()
         self._terminations.close()
-        self._journey_acks.close()
+        self._journeys.close()
         self._line_versions.close()
         self._line_documents.close()
         self._liveliness.close()

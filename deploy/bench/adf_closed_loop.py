@@ -54,6 +54,8 @@ class ClosedLoopRecord:
     """Stop index → (arrival time [s], stop error [m])."""
     traction_energy_j: float
     nmpc: NmpcStats
+    coast_steps: int = 0
+    """Control steps on which the train coasted with the plan (the NMPC left out, no solve)."""
 
 
 def run_autonomous_journey(
@@ -75,6 +77,7 @@ def run_autonomous_journey(
     times, speeds, references, accelerations = [], [], [], []
     overspeed = -np.inf
     arrivals: dict[int, tuple[float, float]] = {}
+    coast_steps = 0
     for k in range(round(duration_s / control_s)):
         now = k * control_s
         force = driving.force_n(
@@ -83,6 +86,7 @@ def run_autonomous_journey(
             speed_mps=plant.speed_mps,
             applied_force_n=plant.applied_force_n,
         )
+        coast_steps += driving.coasting
         for _ in range(substeps):
             chainage = plan.chainage_m(plant.position_m)
             plant.step(
@@ -106,6 +110,7 @@ def run_autonomous_journey(
         arrivals=arrivals,
         traction_energy_j=plant.traction_energy_j,
         nmpc=controller.stats,
+        coast_steps=coast_steps,
     )
 
 
