@@ -37,15 +37,28 @@ to take up the fix's correction, late enough that little odometry error builds u
 
 
 def bologna_ring() -> Line:
+    """The seed 000 field-test ring, in Level 1: each balise group gives the MA to the group
+    after the next."""
+    return _ring("bologna-ring", "Bologna test ring (synthetic)", etcs_level=1)
+
+
+def bologna_ring_level_2() -> Line:
+    """The same ring in Level 2: MAs come from the RBC alone, its balise groups only locate
+    the train. The shared line of the multi-train scenarios: fixed Level 1 MAs would let a
+    train behind run into one ahead, where the RBC keeps them apart."""
+    return _ring("bologna-ring-l2", "Bologna test ring in ETCS Level 2 (synthetic)", etcs_level=2)
+
+
+def _ring(line_id: str, name: str, *, etcs_level: int) -> Line:
     quarter = RING_RADIUS_M * math.pi / 2.0
     short = (RING_LENGTH_M - 2 * RING_LONG_STRAIGHT_M - 4 * quarter) / 2.0
     # Altitude gained on the straights is lost in the last curve, so the ring closes.
     closing_gradient = -(short * 1.0) / quarter
     builder = LineBuilder(
-        id="bologna-ring",
-        name="Bologna test ring (synthetic)",
+        id=line_id,
+        name=name,
         ring=True,
-        etcs_level=1,
+        etcs_level=etcs_level,
         origin_lat_deg=44.5120,
         origin_lon_deg=11.3180,
         origin_alt_m=42.0,
@@ -73,7 +86,7 @@ def bologna_ring() -> Line:
     for index, (group_id, position) in enumerate(groups):
         after_next = groups[(index + 2) % len(groups)][1]
         authority = (after_next - position) % RING_LENGTH_M
-        builder.balise_group(group_id, position, authority_m=authority)
+        builder.balise_group(group_id, position, authority_m=authority if etcs_level == 1 else None)
     return builder.build(geodetic_step_m=10.0)
 
 
@@ -138,6 +151,7 @@ def milano_bologna() -> Line:
 SEED_LINES: dict[str, Callable[[], Line]] = {
     "bologna-ring": bologna_ring,
     "milano-bologna": milano_bologna,
+    "bologna-ring-l2": bologna_ring_level_2,
 }
 
 

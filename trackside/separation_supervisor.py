@@ -36,11 +36,16 @@ from collections.abc import Callable
 from protocol import messages as m
 from trackside.errors import EndOfAuthorityBehindVehicleError, VehicleNotPlacedError
 from trackside.rbc import MovementAuthorityIssue, RbcEmulator
-from trackside.separation import MovingBlock, extent_from_report
+from trackside.separation import MovingBlock, TrainExtent, extent_from_report
 
-__all__ = ["SeparationSupervisor"]
+__all__ = ["SAME_EOA_M", "SeparationSupervisor"]
 
 _log = logging.getLogger(__name__)
+
+SAME_EOA_M = 1e-3
+"""Two EoAs closer than this [m] are the same: a limit recomputed round a ring differs from
+the granted one by rounding alone, and must not shorten (or revoke) the MA of a train standing
+at it."""
 
 
 class SeparationSupervisor:
@@ -151,9 +156,8 @@ class SeparationSupervisor:
         gap = self.block.gap_m(vehicle_id)
         if extent is None or math.isinf(gap):
             return None
-        line_id = extent.line_id
         allowed = gap - self.block.margin_m
-        wanted = self.block.ahead_m(line_id, extent.front_m, route.end_of_authority_m)
+        wanted = self._reach_m(extent, route.end_of_authority_m)
         if wanted <= allowed:
             return None
         return m.MovementAuthorityEnd(
@@ -172,16 +176,20 @@ class SeparationSupervisor:
         target = m.MovementAuthorityEnd(**_end_fields(route)) if cut is None else cut
         extent = self.block.extent(vehicle_id)
         assert extent is not None  # placed: its route was granted
-        line_id = extent.line_id
-        gain_m = self.block.ahead_m(
-            line_id, extent.front_m, target.end_of_authority_m
-        ) - self.block.ahead_m(line_id, extent.front_m, granted_m)
-        if gain_m > 0.0:
+        gain_m = self._reach_m(extent, target.end_of_authority_m) - self._reach_m(extent, granted_m)
+        if gain_m > SAME_EOA_M:
             if cut is None or gain_m >= self.extension_step_m:
                 self.rbc.extend(vehicle_id, target)
             return
-        if gain_m < 0.0:
+        if gain_m < -SAME_EOA_M:
             self._shorten(vehicle_id, target)
+
+    def _reach_m(self, extent: TrainExtent, end_of_authority_m: float) -> float:
+        """How far an EoA lies ahead of the train's max safe front end [m], measured from its
+        min safe rear end: a train standing at its EoA may report a front end a little beyond
+        it, and on a ring that EoA is then just behind the front (negative), not a lap ahead."""
+        from_rear = self.block.ahead_m(extent.line_id, extent.rear_m, end_of_authority_m)
+        return from_rear - (extent.front_m - extent.rear_m)
 
     def _shorten(self, vehicle_id: str, target: m.MovementAuthorityEnd) -> None:
         try:

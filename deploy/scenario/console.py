@@ -13,7 +13,7 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from deploy.scenario.kpi_model import Kpis, WallTimeBreakdown
+from deploy.scenario.kpi_model import Kpis, TrainSummary, WallTimeBreakdown
 from deploy.scenario.loader import ScenarioFileError, load_scenario
 from deploy.scenario.runner import Progress as RunProgress
 from deploy.scenario.runner import RunOptions, RunOutcome, ScenarioRunError, run_scenario
@@ -130,6 +130,17 @@ def _headline(kpis: Kpis) -> list[tuple[str, object]]:
     return rows
 
 
+def _fleet_train_text(train: TrainSummary) -> str:
+    """One train of a multi-train run, in a line."""
+    delay = train.max_arrival_delay_s
+    return (
+        f"{'passed' if train.passed else 'FAILED'}, {train.stops} stops, "
+        f"latest {'-' if delay is None else f'{delay:+.1f}'} s, held {train.held_s:.1f} s "
+        f"({train.eoa_stops} EoA stops), ETCS SB/EB {train.etcs_sb_count}/"
+        f"{train.etcs_eb_count}, VC EB {train.vc_eb_count}"
+    )
+
+
 def summary_table(outcome: RunOutcome) -> Table:
     """The run's headline KPIs and each expectation."""
     kpis = outcome.kpis
@@ -145,6 +156,20 @@ def summary_table(outcome: RunOutcome) -> Table:
             f"stop {stop.name}",
             f"arrival {stop.arrival_error_s:+.2f} s, position {stop.stop_error_m:+.3f} m",
         )
+    if kpis.fleet is not None:
+        for train in kpis.fleet.trains:
+            table.add_row(f"train {train.vehicle_id}", _fleet_train_text(train))
+        fleet = kpis.fleet
+        table.add_row(
+            "least distance between trains",
+            f"{_format(fleet.min_distance_m)} m at {_format(fleet.min_distance_at_s)} s "
+            f"({' behind '.join(fleet.min_distance_between) or 'none'})",
+        )
+        for headway in fleet.headways:
+            table.add_row(
+                f"headway at {headway.stop}",
+                f"{headway.headway_s:.1f} s ({headway.behind} after {headway.ahead})",
+            )
     for item in kpis.vc_interventions:
         timing = (
             f"hazard→command {item.hazard_to_eb_command_ms} ms, "

@@ -35,6 +35,8 @@ __all__ = [
     "EoaStop",
     "EstimateError",
     "ExpectationResult",
+    "FleetKpis",
+    "Headway",
     "JourneyReport",
     "Kpis",
     "LegEnergy",
@@ -43,6 +45,7 @@ __all__ = [
     "SessionOutage",
     "SolveTimes",
     "TaskWallTime",
+    "TrainSummary",
     "VC_ONLY_FIELDS",
     "VC_RUN_FIELDS",
     "VcIntervention",
@@ -239,6 +242,55 @@ class EnergyCertificate(_KpiModel):
     legs: list[LegEnergy] = Field(description="Each leg driven, in order.")
 
 
+class TrainSummary(_KpiModel):
+    """One train of a multi-train run: its own verdict and safety figures (its whole KPIs in
+    ``{vehicle_id}/kpis.json`` beside the run's)."""
+
+    vehicle_id: str = Field(description="The train's vehicle.")
+    passed: bool = Field(description="Every expectation of the train held.")
+    stops: int = Field(description="Stops it served.")
+    max_stop_error_m: float | None = Field(description="Its largest |stop error| [m].")
+    max_arrival_delay_s: float | None = Field(
+        description="Its latest arrival against the plan [s] (negative: all early)."
+    )
+    eoa_stops: int = Field(description="Times it stood for an EoA short of its next stop.")
+    held_s: float = Field(
+        description="How long it stood for an EoA short of its next stop [s]: the delay the "
+        "trains ahead (or the MAs) caused it."
+    )
+    max_overspeed_kmh: float = Field(description="Its true speed's largest excess [km/h].")
+    etcs_sb_count: int = Field(description="ETCS service-brake interventions.")
+    etcs_eb_count: int = Field(description="ETCS emergency-brake interventions.")
+    vc_eb_count: int = Field(description="Vital Control emergency brakes.")
+    failed: list[str] = Field(description="The expectations of the train that did not hold.")
+
+
+class Headway(_KpiModel):
+    """Two trains one after the other at a stop both served."""
+
+    stop: str = Field(description="The stop.")
+    ahead: str = Field(description="The train that arrived first.")
+    behind: str = Field(description="The train that arrived next.")
+    headway_s: float = Field(description="Between their arrivals [s].")
+
+
+class FleetKpis(_KpiModel):
+    """The trains of a multi-train run and how close they came (the plants' truth)."""
+
+    trains: list[TrainSummary] = Field(description="Every train, the lead train first.")
+    min_distance_m: float | None = Field(
+        description="The least distance from a train's front end to the rear end of the train "
+        "ahead over the run, on the truth, sampled every 0.2 s [m]; negative: they collided. "
+        "Null when no train ever had one ahead."
+    )
+    min_distance_at_s: float | None = Field(description="When it was least [s].")
+    min_distance_between: list[str] = Field(
+        description="The train behind and the train ahead at that moment."
+    )
+    headways: list[Headway] = Field(description="Each stop's consecutive arrivals.")
+    min_headway_s: float | None = Field(description="The least of the headways [s].")
+
+
 class Kpis(_KpiModel):
     """The KPIs of one run: ``kpis.json`` (docs/scenarios.md, "What a run writes")."""
 
@@ -391,6 +443,11 @@ class Kpis(_KpiModel):
         default=None,
         description="Stops the vehicle reported it would not serve; written once recorded.",
     )
+    fleet: FleetKpis | None = Field(
+        default=None,
+        description="A multi-train run's trains, their least distance and headways; the "
+        "other fields are the lead train's. Written in multi-train runs only.",
+    )
     expectations: list[ExpectationResult] = Field(
         description="The scenario's expectations, its invariants and the run's failures, judged."
     )
@@ -409,7 +466,7 @@ class Kpis(_KpiModel):
 
 VC_ONLY_FIELDS = ("vc_outcome", "vc_expected_outcome", "vc_decay_reasons")
 """Fields of ``[vc]`` runs only."""
-_LEFT_OUT_WHEN_NULL = (*VC_ONLY_FIELDS, "journey_reports")
+_LEFT_OUT_WHEN_NULL = (*VC_ONLY_FIELDS, "journey_reports", "fleet")
 WHOLE_STACK_FIELDS = tuple(
     name
     for name, field in Kpis.model_fields.items()
@@ -417,7 +474,9 @@ WHOLE_STACK_FIELDS = tuple(
 )
 """Fields of whole-stack runs only (a ``[vc]`` run leaves them out): those with a default."""
 VC_RUN_FIELDS = tuple(
-    name for name in Kpis.model_fields if name not in WHOLE_STACK_FIELDS + ("journey_reports",)
+    name
+    for name in Kpis.model_fields
+    if name not in WHOLE_STACK_FIELDS + ("journey_reports", "fleet")
 )
 """The fields a ``[vc]`` run writes."""
 

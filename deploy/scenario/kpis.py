@@ -250,12 +250,20 @@ def _value_at(kpis: Mapping[str, Any], path: str) -> Any:
     if isinstance(value, list):
         if rest == "count":
             return len(value)
-        return [item[rest] for item in value]
+        return [_member(item, rest, path) for item in value]
     if isinstance(value, Mapping):
-        if rest not in value:
-            raise KeyError(f"no KPI {path!r}")
-        return value[rest]
+        return _member(value, rest, path)
     raise KeyError(f"{head} has no member {rest!r}")
+
+
+def _member(value: Mapping[str, Any], rest: str, path: str) -> Any:
+    """``rest`` of a KPI's table (a dotted path again: ``fleet.trains.passed``)."""
+    if rest in value:
+        return value[rest]
+    head = rest.partition(".")[0]
+    if "." in rest and head in value:
+        return _value_at(value, rest)
+    raise KeyError(f"no KPI {path!r}")
 
 
 def _holds(value: Any, op: str, expected: Any) -> bool:

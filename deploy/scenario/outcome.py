@@ -39,7 +39,7 @@ from onboard.ato_ob.transitions import Trigger
 from onboard.runtime import TaskStats
 from protocol.units import MPS_PER_KMH
 
-__all__ = ["RunOutcome", "build_outcome"]
+__all__ = ["RunOutcome", "build_outcome", "judge"]
 
 
 @dataclass
@@ -48,6 +48,8 @@ class RunOutcome:
     columns: dict[str, np.ndarray] = field(default_factory=dict)
     optimum_profiles: tuple[OptimumProfile, ...] = ()
     """Each leg's offline optimum, for the report (``deploy.scenario.energy_certificate``)."""
+    trains: dict[str, RunOutcome] = field(default_factory=dict)
+    """A multi-train run: the other trains' outcomes by vehicle id (this one is the lead's)."""
 
     @property
     def passed(self) -> bool:
@@ -87,18 +89,18 @@ def build_outcome(ctx: RunContext, link: ZenohLinkFault | None) -> RunOutcome:
         actions=[ActionRecord(**vars(item)) for item in ctx.actions],
         energy=energy.certificate,
         energy_plan_fallbacks=energy.fallbacks,
-        # The verdict is _judge's, the wall clock run_scenario's once the run is over.
+        # The verdict is judge's, the wall clock run_scenario's once the run is over.
         passed=False,
         expectations=[],
         wall_time_s=0.0,
         real_time_factor=0.0,
     )
     failures = [ExpectationResult(name=text, ok=False, detail=text) for text in ctx.failures]
-    _judge(kpis, ctx.spec, failures)
+    judge(kpis, ctx.spec, failures)
     return RunOutcome(kpis, columns, energy.profiles)
 
 
-def _judge(kpis: Kpis, spec: ScenarioSpec, failures: Sequence[ExpectationResult] = ()) -> None:
+def judge(kpis: Kpis, spec: ScenarioSpec, failures: Sequence[ExpectationResult] = ()) -> None:
     """Set the run's ``expectations`` (the scenario's, the run's ``failures``, the invariants
     when the scenario asks for them) and ``passed``, every one held."""
     expectations = check_expectations(kpis, spec.expect) + list(failures)

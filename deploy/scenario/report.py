@@ -24,7 +24,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from deploy.scenario.energy_certificate import OptimumProfile
-from deploy.scenario.kpi_model import EnergyCertificate, Kpis
+from deploy.scenario.kpi_model import EnergyCertificate, FleetKpis, Kpis
 from protocol.units import J_PER_KWH, MPS_PER_KMH
 
 __all__ = ["render_report"]
@@ -218,12 +218,45 @@ def _figures(
     return figures, f'<img alt="driven and optimal speed" src="data:image/png;base64,{png}">'
 
 
+def _fleet_section(fleet: FleetKpis | None) -> str:
+    """A multi-train run's trains, their least distance and headways ("" for one train)."""
+    if fleet is None:
+        return ""
+
+    def number(value: float | None, form: str) -> str:
+        return "–" if value is None else format(value, form)
+
+    trains = "".join(
+        f'<tr class="{"ok" if t.passed else "fail"}"><td>{html.escape(t.vehicle_id)}</td>'
+        f"<td>{'passed' if t.passed else 'FAILED'}</td><td>{t.stops}</td>"
+        f"<td>{number(t.max_arrival_delay_s, '+.1f')}</td><td>{t.held_s:.1f}</td>"
+        f"<td>{t.eoa_stops}</td><td>{number(t.max_stop_error_m, '.3f')}</td>"
+        f"<td>{t.etcs_sb_count}/{t.etcs_eb_count}/{t.vc_eb_count}</td></tr>"
+        for t in fleet.trains
+    )
+    headways = "".join(
+        f"<tr><td>{html.escape(h.stop)}</td><td>{html.escape(h.ahead)}</td>"
+        f"<td>{html.escape(h.behind)}</td><td>{h.headway_s:.1f}</td></tr>"
+        for h in fleet.headways
+    )
+    between = " behind ".join(fleet.min_distance_between) or "no train ahead"
+    return f"""<h2>Trains</h2><table><tr><th>vehicle</th><th>verdict</th><th>stops</th>
+<th>latest arrival [s]</th><th>held by its MA [s]</th><th>EoA stops</th>
+<th>|stop error| max [m]</th><th>ETCS SB/EB, VC EB</th></tr>{trains}</table>
+<p>Least distance from a train's front end to the rear end of the train ahead (truth):
+{number(fleet.min_distance_m, ".1f")} m at {number(fleet.min_distance_at_s, ".1f")} s
+({html.escape(between)}).</p>
+<table><tr><th>stop</th><th>ahead</th><th>behind</th><th>headway [s]</th></tr>{headways}</table>
+"""
+
+
 def render_report(
     kpis: Kpis, columns: Mapping[str, np.ndarray], optima: Sequence[OptimumProfile] = ()
 ) -> str:
     """The report's HTML; ``optima``: each leg's offline optimum, for the energy plot."""
     figures, energy_figure = _figures(kpis, columns, optima)
     energy = _energy_section(kpis.energy, kpis.energy_plan_fallbacks)
+    trains = _fleet_section(kpis.fleet)
     expectations = "".join(
         f'<tr class="{"ok" if e.ok else "fail"}"><td>{"✔" if e.ok else "✘"}</td>'
         f"<td>{html.escape(e.name)}</td><td>{html.escape(e.detail)}</td></tr>"
@@ -239,7 +272,7 @@ def render_report(
     scalars = [
         (k, json.dumps(v))
         for k, v in written.items()
-        if k not in ("stops", "expectations", "vc_interventions", "energy")
+        if k not in ("stops", "expectations", "vc_interventions", "energy", "fleet")
     ]
     verdict = "passed" if kpis.passed else "FAILED"
     interventions = html.escape(json.dumps(written["vc_interventions"], indent=1))
@@ -258,7 +291,7 @@ img {{ max-width: 100%; margin: 1em 0; }}
 <p>Seed {kpis.seed}, {kpis.sim_time_s:.1f} s simulated in
 {kpis.wall_time_s:.1f} s ({kpis.real_time_factor:.1f}× real time).</p>
 <h2>Expectations</h2><table>{expectations}</table>
-<h2>Stops</h2><table><tr><th>stop</th><th>planned arrival [s]</th><th>arrival error [s]</th>
+{trains}<h2>Stops</h2><table><tr><th>stop</th><th>planned arrival [s]</th><th>arrival error [s]</th>
 <th>stop error [m]</th><th>ETCS interval [m]</th></tr>{stops}</table>
 <h2>Energy: driven, plan and the offline optimum</h2>{energy}{energy_figure}
 <h2>Plots</h2>{images}

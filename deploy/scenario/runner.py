@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import zenoh
 
 from deploy.bench.vc_runner import ScenarioResult
 from deploy.bench.vc_runner import run_scenario as run_vc_scenario
@@ -86,7 +87,11 @@ __all__ = [
     "RunOptions",
     "RunOutcome",
     "ScenarioRunError",
+    "WholeStackRun",
+    "new_context",
     "run_scenario",
+    "trackside_session",
+    "write_report",
 ]
 
 SLICE_S = 0.2
@@ -143,6 +148,31 @@ def _run_credentials(
     return TlsFiles.of(pki, TRACKSIDE), TlsFiles.of(pki, spec.vehicle.id)
 
 
+def trackside_session(
+    stack: ExitStack, vehicles: list[str], tls: TlsFiles | None
+) -> tuple[zenoh.Session, str]:
+    """The run's trackside Zenoh session, listening on a free loopback port (TLS, with the
+    access control of ``vehicles`` and the trackside, unless ``tls`` is None: insecure), closed
+    with ``stack``; and the endpoint the onboards connect to."""
+    endpoint = loopback_endpoint()
+    if tls is not None:
+        endpoint = endpoint.replace("tcp/", "tls/", 1)
+    session = stack.enter_context(
+        open_session(
+            ZenohSettings(
+                mode="peer",
+                connect=(),
+                listen=(endpoint,),
+                tls=tls,
+                access_control=None
+                if tls is None
+                else access_control(vehicles=vehicles, tracksides=[TRACKSIDE]),
+            )
+        )
+    )
+    return session, endpoint
+
+
 def run_scenario(
     spec: ScenarioSpec,
     options: RunOptions = DEFAULT_OPTIONS,
@@ -155,19 +185,27 @@ def run_scenario(
     started = time.perf_counter()
     if spec.vc is not None:
         outcome = _run_vc(spec, seed)
+    elif spec.trains:
+        from deploy.scenario.fleet import FleetRun  # it builds on this module
+
+        with FleetRun.open(spec, options, seed) as fleet:
+            outcome = fleet.run(progress)
     else:
         with WholeStackRun.open(spec, options, seed) as run:
             outcome = run.run(progress)
     wall_s = time.perf_counter() - started
-    kpis = outcome.kpis
-    # The factor is a float of the contract: a run measured at 0 s (it never is) would be inf.
-    kpis.wall_time_s = wall_s
-    kpis.real_time_factor = kpis.sim_time_s / max(wall_s, MIN_WALL_S)
-    breakdown = kpis.wall_time_breakdown
-    if breakdown is not None:
-        breakdown.outside_lockstep_s = round(wall_s - breakdown.lockstep_s, 3)
+    for kpis in (outcome.kpis, *(train.kpis for train in outcome.trains.values())):
+        # The factor is a float of the contract: a run measured at 0 s (it never is) would be
+        # inf. The trains of a multi-train run share its wall time.
+        kpis.wall_time_s = wall_s
+        kpis.real_time_factor = kpis.sim_time_s / max(wall_s, MIN_WALL_S)
+        breakdown = kpis.wall_time_breakdown
+        if breakdown is not None:
+            breakdown.outside_lockstep_s = round(wall_s - breakdown.lockstep_s, 3)
     if options.report_dir is not None:
         write_report(outcome, options.report_dir)
+        for vehicle_id, train in outcome.trains.items():
+            write_report(train, options.report_dir / vehicle_id)
     return outcome
 
 
@@ -284,22 +322,7 @@ class WholeStackRun:
         with ExitStack() as stack:
             scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ato-run-")))
             trackside_tls, onboard_tls = _run_credentials(spec, options, scratch)
-            endpoint = loopback_endpoint()
-            if trackside_tls is not None:
-                endpoint = endpoint.replace("tcp/", "tls/", 1)
-            trackside_zenoh = stack.enter_context(
-                open_session(
-                    ZenohSettings(
-                        mode="peer",
-                        connect=(),
-                        listen=(endpoint,),
-                        tls=trackside_tls,
-                        access_control=None
-                        if trackside_tls is None
-                        else access_control(vehicles=[spec.vehicle.id], tracksides=[TRACKSIDE]),
-                    )
-                )
-            )
+            trackside_zenoh, endpoint = trackside_session(stack, [spec.vehicle.id], trackside_tls)
             # With a link fault the onboard reaches the trackside through a proxy that can cut
             # the link (closed after the sessions: the ExitStack unwinds in reverse).
             proxy = None
@@ -326,7 +349,7 @@ class WholeStackRun:
                 track_map=track_map,
             )
             stack.callback(node.close)
-            ctx = _context(spec, options, seed, node)
+            ctx = new_context(spec, options, seed, node)
             trackside = TracksideHarness(ctx, scratch, trackside_zenoh)
             trackside.start()
             stack.callback(trackside.stop)
@@ -352,13 +375,13 @@ class WholeStackRun:
             self.operator.answer_vc()
             self.operator.reengage(state)
             ctx.run_for(min(SLICE_S, spec.duration_s - node.clock.now_s))
-            self._watch_session()
+            self.watch_session()
             if progress is not None:
-                progress(self._progress())
+                progress(self.progress_frame())
         self.operator.note_pending()
         return build_outcome(ctx, self.link)
 
-    def _watch_session(self) -> None:
+    def watch_session(self) -> None:
         """Note each loss of the established session and its re-establishment (to the slice)."""
         node, outages = self.ctx.node, self.ctx.session_outages
         established = node.session_client.established
@@ -374,7 +397,7 @@ class WholeStackRun:
             assert lost_s is not None
             outage.update(reestablished_s=now_s, duration_s=round(now_s - lost_s, 6))
 
-    def _progress(self) -> Progress:
+    def progress_frame(self) -> Progress:
         node = self.ctx.node
         stack = node.stack
         return Progress(
@@ -430,7 +453,9 @@ class WholeStackRun:
         }
 
 
-def _context(spec: ScenarioSpec, options: RunOptions, seed: int, node: OnboardNode) -> RunContext:
+def new_context(
+    spec: ScenarioSpec, options: RunOptions, seed: int, node: OnboardNode
+) -> RunContext:
     """The run's shared state, with a telemetry recorder on the node."""
     recorder = TelemetryRecorder(node)
     recorder.register()

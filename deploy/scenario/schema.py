@@ -29,6 +29,8 @@ __all__ = [
     "LineImportSpec",
     "OperatorSpec",
     "ScenarioSpec",
+    "SeparationSpec",
+    "TrainSpec",
     "VcCatalogueSpec",
     "VehicleSpec",
 ]
@@ -377,6 +379,37 @@ class VcCatalogueSpec(_Model):
     replicas: Literal[1, 2] = 1
 
 
+class TrainSpec(_Model):
+    """Another train on the scenario's line (``[[trains]]``): its vehicle, its operator, its
+    journey and actions, and the expectations on its own KPIs. It runs in the same lockstep
+    run as the scenario's own vehicle, on the same trackside; faults stay the lead train's."""
+
+    vehicle: VehicleSpec
+    operator: OperatorSpec = OperatorSpec()
+    journey: JourneySpec | None = None
+    actions: tuple[Action, ...] = ()
+    expect: tuple[Expectation, ...] = ()
+
+    @model_validator(mode="after")
+    def _consistent(self) -> TrainSpec:
+        if any(a.do == "send_journey" for a in self.actions) and self.journey is None:
+            raise ValueError("a send_journey action needs a [trains.journey]")
+        return self
+
+
+class SeparationSpec(_Model):
+    """The RBC's separation of the trains on the line (``trackside.separation``: a moving
+    block): each MA ends ``margin_m`` behind the min safe rear end of the train ahead."""
+
+    margin_m: float = Field(gt=0.0, le=10_000.0, allow_inf_nan=False)
+    extension_step_m: float = Field(default=50.0, ge=0.0, le=10_000.0, allow_inf_nan=False)
+
+
+MULTI_TRAIN_FAULTS_REFUSED = ("trackside_restart", "zenoh_link_loss")
+"""Faults a multi-train run does not inject: they act on the one trackside and link all the
+trains share."""
+
+
 class ScenarioSpec(_Model):
     """One scenario file."""
 
@@ -400,6 +433,10 @@ class ScenarioSpec(_Model):
     expect: tuple[Expectation, ...] = ()
     vc: VcCatalogueSpec | None = None
     invariants: InvariantSettings | None = None
+    trains: tuple[TrainSpec, ...] = Field(default=(), max_length=9)
+    """The other trains on the line, behind or ahead of the scenario's vehicle (the lead
+    train): a multi-train run (``deploy.scenario.fleet``)."""
+    separation: SeparationSpec | None = None
 
     @field_validator("end_when")
     @classmethod
@@ -416,4 +453,18 @@ class ScenarioSpec(_Model):
             raise ValueError("[line_import] goes with line_file, and only with it")
         if any(a.do == "send_journey" for a in self.actions) and self.journey is None:
             raise ValueError("a send_journey action needs a [journey]")
+        if self.trains:
+            self._check_trains()
         return self
+
+    def _check_trains(self) -> None:
+        ids = [self.vehicle.id, *(train.vehicle.id for train in self.trains)]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"each train has its own vehicle id: {ids}")
+        if self.separation is None:
+            raise ValueError("[[trains]] share the line under the RBC's [separation]: set it")
+        if self.vc is not None:
+            raise ValueError("[[trains]] run the whole stack, not a [vc] catalogue scenario")
+        refused = sorted({f.kind for f in self.faults} & set(MULTI_TRAIN_FAULTS_REFUSED))
+        if refused:
+            raise ValueError(f"faults not injected in a multi-train run: {refused}")

@@ -68,6 +68,8 @@ class StopRecord:
     """True front position − stopping point, along the journey [m]."""
     odometry_interval_m: float
     """ETCS's confidence interval at the stop: the larger of over- and under-reading [m]."""
+    at_s: float
+    """The run's simulated time of the stop [s] (trains' journeys start at their own times)."""
 
 
 @dataclass
@@ -216,8 +218,14 @@ class TelemetryRecorder:
             self._standing_since_s = now_s
             self._stopped_for_authority = node.stack.driving.stopping_for_authority
         settled = now_s - self._eoa_seen[1] >= EOA_SETTLED_S
+        # An EoA that moved while the train stood (an MA extended before it moved off) is not
+        # one it stopped for.
+        in_force = self._eoa_seen[1] <= self._standing_since_s
         if not (
-            settled and self._stopped_for_authority and node.stack.driving.stopping_for_authority
+            settled
+            and in_force
+            and self._stopped_for_authority
+            and node.stack.driving.stopping_for_authority
         ):
             return
         distance_m = eoa_m - node.plant.position_m
@@ -289,6 +297,7 @@ class TelemetryRecorder:
                 arrival_s=driving.journey_time_s(now_ns / NS_PER_S),
                 stop_error_m=travelled - stop.distance_m,
                 odometry_interval_m=_interval_m(node),
+                at_s=now_ns / NS_PER_S,
             )
         )
 

@@ -13,6 +13,7 @@ that the message is taken at a tick fixed by simulated time.
 
 from __future__ import annotations
 
+import copy
 import secrets
 import threading
 import time
@@ -103,6 +104,15 @@ class TracksideHarness:
                 f"the trackside refused line {line.id!r} ({answer.status_code}): "
                 f"{answer.text[:300]}"
             )
+
+    def for_train(self, ctx: RunContext) -> TracksideHarness:
+        """The same service, logged in as the same user, for another train of the run (a
+        multi-train run: one trackside for all its trains). The service's life cycle stays
+        with this harness."""
+        view = copy.copy(self)
+        view.ctx = ctx
+        view._selected = False
+        return view
 
     def stop(self) -> None:
         if self.client is not None:

@@ -142,6 +142,23 @@ class Localisation:
         near_m = self._interval.estimated_front_m
         return chainage_m + length_m * round((near_m - chainage_m) / length_m)
 
+    def locate_span(self, start_m: float, length_m: float) -> float:
+        """Where a stretch of the line from chainage ``start_m``, ``length_m`` [m] long (an
+        MA from its reference), starts: on a ring, the lap on which the estimated front end
+        lies inside it, or nearest to it.
+
+        An RBC's MA may reference a location most of a lap behind the train (its start when
+        first issued, kept by its extensions): the location nearest the front end would then
+        be the next lap's, and the EoA a lap too far.
+        """
+        if not self.track_map.line.ring:
+            return start_m
+        lap_m = self.track_map.length_m
+        front_m = self._interval.estimated_front_m
+        nearest = self.locate(start_m)
+        candidates = (nearest, nearest - lap_m, nearest + lap_m)  # ties: the nearest
+        return min(candidates, key=lambda at: _outside_m(front_m, at, at + length_m))
+
     def relocate(
         self,
         balise_group_id: int,
@@ -182,3 +199,8 @@ class Localisation:
         return self._odometry.interval_at(
             point.odometer_m, slip_slide_over_m=over_m, slip_slide_under_m=under_m
         )
+
+
+def _outside_m(position_m: float, start_m: float, end_m: float) -> float:
+    """How far ``position_m`` lies outside ``[start_m, end_m]`` [m] (0 inside)."""
+    return max(start_m - position_m, position_m - end_m, 0.0)

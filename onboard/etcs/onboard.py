@@ -325,7 +325,9 @@ class EtcsOnboard:
         change = self._authority.accept_with_track_description(
             authority,
             now_s,
-            reference_location_m=self._where.locate(authority.reference_m),
+            reference_location_m=self._where.locate_span(
+                authority.reference_m, authority.end_of_authority_m
+            ),
             track_description_m=track_description_m,
         )
         self._modes.evaluate(now_s)

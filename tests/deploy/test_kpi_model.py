@@ -237,7 +237,7 @@ def test_a_whole_stack_run_writes_a_kpis_json_valid_under_the_committed_schema(
     document = json.loads(written)
     _validator(committed_schema).validate(document)
     assert tuple(document)[: len(CONTRACT_FIRST)] == CONTRACT_FIRST
-    assert set(document) == set(Kpis.model_fields) - {*VC_ONLY_FIELDS, "journey_reports"}
+    assert set(document) == set(Kpis.model_fields) - {*VC_ONLY_FIELDS, "journey_reports", "fleet"}
     assert Kpis.model_validate_json(written) == outcome.kpis
     assert document["wall_time_breakdown"]["outside_lockstep_s"] is not None
     assert "control" in document["wall_time_breakdown"]["tasks"]

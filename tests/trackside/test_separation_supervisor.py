@@ -3,6 +3,8 @@ it moves on, shortened or revoked when a train turns up ahead."""
 
 from __future__ import annotations
 
+import random
+
 import pytest
 
 from protocol import messages as m
@@ -129,6 +131,42 @@ def test_on_a_ring_the_ma_is_cut_in_its_own_unwrapped_frame() -> None:
     assert message.authority is not None
     # URV2's rear 142 m, i.e. 5842 m unwrapped; less the margin: 5792 m.
     assert message.authority.end_of_authority_m == pytest.approx(5792.0)
+
+
+def test_on_a_ring_a_train_standing_at_its_eoa_is_extended_as_the_leader_leaves() -> None:
+    """The train held behind stops at its EoA with its max safe front end (estimate + 2 m)
+    a little beyond it: that EoA is just behind its front, not a lap ahead of it. Found by a
+    two-train run on the ring, where the RBC took it for a lap and tried to shorten the MA."""
+    line = Line("ring", ring_m=RING_M)
+    line.place("URV1", 2000.0)
+    line.place("URV2", 300.0)
+    line.supervisor.request("URV2", line.route(5950.0, start_m=250.0))
+    assert line.eoa("URV2") == pytest.approx(1942.0)  # URV1's rear 1992, less the margin
+    line.report("URV2", 1941.0)  # standing at it: its max safe front end at 1943
+    assert line.eoa("URV2") == pytest.approx(1942.0)
+    assert [msg.change for msg in line.heard] == [Change.ISSUED]
+    line.report("URV1", 2100.0)
+    assert line.eoa("URV2") == pytest.approx(2042.0)
+    assert line.heard[-1].change is Change.EXTENDED
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_on_a_ring_a_recomputed_limit_does_not_shorten_the_ma_it_granted(seed: int) -> None:
+    """Round a ring, the limit recomputed from the same reports differs from the granted EoA by
+    rounding alone: no shortening (nor, for a train standing at it, a revocation)."""
+    rng = random.Random(seed)
+    line = Line("ring", ring_m=RING_M)
+    lead = rng.uniform(0.0, RING_M)
+    follower = (lead - rng.uniform(100.0, 1500.0)) % RING_M
+    line.place("URV1", lead)
+    line.place("URV2", follower)
+    line.supervisor.request("URV2", line.route(follower - 50.0 + RING_M, start_m=follower - 20.0))
+    eoa = line.eoa("URV2")
+    assert eoa is not None
+    for _ in range(5):
+        line.report("URV2", (eoa - rng.uniform(3.0, 8.0)) % RING_M)
+        line.report("URV1", lead)
+    assert [msg.change for msg in line.heard] == [Change.ISSUED]
 
 
 def test_a_withdrawn_train_bounds_no_one() -> None:

@@ -16,7 +16,9 @@ from onboard.etcs import (
 )
 from protocol.messages import EtcsMode
 from tests.onboard.etcs.layouts import in_full_supervision, level_line
+from trackdb import TrackMap
 from trackdb.schema import MovementAuthorityPacket
+from trackdb.seed_lines import bologna_ring_level_2
 
 
 def _in_force(authority: MovementAuthority, reference_m: float = 100.0) -> AuthorityInForce:
@@ -145,3 +147,30 @@ def test_bad_sections_and_areas_are_refused() -> None:
         MaSection(length_m=10.0, timer_s=-1.0)
     with pytest.raises(MovementAuthorityError):
         OnSightArea(start_m=100.0, end_m=50.0)
+
+
+def test_on_a_ring_an_ma_referenced_most_of_a_lap_behind_keeps_its_eoa() -> None:
+    """An RBC's MA keeps the reference of its first issue through its extensions: late in the
+    lap the reference lies most of a lap behind the train, nearer the next lap's. Found by a
+    two-train run, where the EoA landed a lap too far and the train ran through it."""
+    ring = TrackMap(bologna_ring_level_2())
+    etcs = EtcsOnboard(ring, position_m=300.0, level=EtcsLevel.LEVEL_2)
+    etcs.receive_movement_authority(
+        MovementAuthority(reference_m=300.0, end_of_authority_m=5_350.0), 0.0
+    )
+    position_m, now_s = 300.0, 0.0
+    while position_m < 5_400.0:
+        position_m += 100.0
+        now_s += 10.0
+        etcs.step(now_s, position_m, 10.0)
+    assert etcs.step(now_s + 0.1, position_m, 10.0).end_of_authority_m == pytest.approx(5_650.0)
+    # Extended to 5950 m, by a message referenced at the first issue's 300 m.
+    etcs.receive_movement_authority(
+        MovementAuthority(reference_m=300.0, end_of_authority_m=5_650.0), now_s + 0.2
+    )
+    out = etcs.step(now_s + 0.3, position_m, 10.0)
+    assert out.end_of_authority_m == pytest.approx(250.0)  # the chainage: round the lap
+    # 550 m ahead of the estimated front end, less its interval: not 6250 m (a lap too far).
+    ahead_m = out.supervised_location_distance_m
+    assert ahead_m is not None
+    assert 500.0 < ahead_m < 550.0
