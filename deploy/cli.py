@@ -684,6 +684,27 @@ def bench_trackside(
     run(vehicles=vehicles, seconds=seconds, rate_hz=rate, sockets=sockets)
 
 
+@bench_app.command("up")
+def bench_up(
+    vehicles: Annotated[int, typer.Option(min=1, max=100, help="Vehicles brought up.")] = 10,
+    drive: Annotated[int, typer.Option(min=0, help="Of them, driven through a journey.")] = 10,
+    speed: Annotated[float, typer.Option(min=0.1, max=50.0, help="Onboards' speed.")] = 1.0,
+    data_dir: Annotated[
+        Path | None, typer.Option(help="Keep the fleet's files (logs, PKI) here.")
+    ] = None,
+) -> None:
+    """ato up with N vehicles, K driven over REST: CPU, memory, liveness, clean shutdown."""
+    from rich.console import Console
+
+    from deploy.bench.up_bench import bench_up as run
+    from deploy.bench.up_bench import print_up_bench
+
+    result = run(vehicles=vehicles, drive=drive, speed=speed, data_dir=data_dir)
+    print_up_bench(result, Console())
+    if not result.ok:
+        raise typer.Exit(1)
+
+
 @bench_app.command("zenoh")
 def bench_zenoh(
     count: Annotated[int, typer.Option(help="Commands per measurement.")] = 2000,

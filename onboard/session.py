@@ -6,7 +6,8 @@ node moves its messages over Zenoh.
 - **NCE** (no communication established): a handshake request (HSReq) with the supported
   versions is due at once (at start-up, when a session was lost, and when a trackside's
   liveliness token appears: the trackside may have restarted), and otherwise no sooner than
-  ``retry_s`` (30 s) after a rejection or an unanswered request.
+  ``retry_s`` (30 s) after a rejection or an unanswered request, unless a trackside's token
+  appeared while that request was out (sent, perhaps, while the link was down): then at once.
 - **CSR** (session requested): waiting for the answer. An acceptance (HSAck) brings the trackside's
   response timeout and status-report interval; a rejection (HSRej) its reason. No answer within
   the request timeout counts as a failed attempt.
@@ -76,6 +77,9 @@ class SessionClient:
     _outstanding_seq: int | None = None
     _last_ack_seq: int = -1
     _journey_versions: dict[str, int] = field(default_factory=dict)
+    _appeared_while_requested: bool = False
+    """A trackside's token came while a request was out: a failure of that request (sent,
+    perhaps, while the link was down) is followed by a new one at once, not at the retry."""
 
     @property
     def established(self) -> bool:
@@ -87,6 +91,7 @@ class SessionClient:
         """The HSReq to send now, if one is due."""
         if self.state in (ClientState.NCE, ClientState.CST) and now_s >= self._next_request_s:
             self.state, self._requested_s = ClientState.CSR, now_s
+            self._appeared_while_requested = False
             return m.SessionRequest(
                 vehicle_id=self.vehicle_id,
                 supported_versions=SUPPORTED_VERSIONS,
@@ -113,7 +118,7 @@ class SessionClient:
             self.counters.accepted += 1
             return
         self.state = ClientState.NCE
-        self._next_request_s = now_s + self.retry_s
+        self._next_request_s = self._retry_at(now_s)
         if isinstance(response, m.SessionReject):
             self.reject_reason = response.reason
             self.counters.rejected += 1
@@ -123,6 +128,13 @@ class SessionClient:
         rather than at the retry (a restarted trackside answers it)."""
         if self.state in (ClientState.NCE, ClientState.CST):
             self._next_request_s = min(self._next_request_s, now_s)
+        elif self.state is ClientState.CSR:
+            self._appeared_while_requested = True
+
+    def _retry_at(self, now_s: float) -> float:
+        """When to ask again after a failed request: at the retry, or at once when a trackside
+        appeared meanwhile."""
+        return now_s if self._appeared_while_requested else now_s + self.retry_s
 
     # -- upkeep ------------------------------------------------------------------------------
 
@@ -172,7 +184,7 @@ class SessionClient:
         """Check the timeouts; True when the session has just been lost."""
         if self.state is ClientState.CSR and now_s - self._requested_s > self.request_timeout_s:
             self.state = ClientState.NCE
-            self._next_request_s = now_s + self.retry_s
+            self._next_request_s = self._retry_at(now_s)
             return False
         if self.established and now_s - self._last_heard_s > self.response_timeout_s:
             # A lost session is asked for again at once (a trackside that restarted answers

@@ -29,8 +29,20 @@ pytestmark = pytest.mark.e2e
 VEHICLE = "URV1"
 ADMIN = ("admin", "two-routers-password")
 STEP_WALL_S = 120.0
+SPEED = 2.0
+"""The onboard's speed. The link's loss and return take wall time, which the onboard lives
+faster at a higher speed: at 10× on a loaded machine the link was down long enough in
+simulated time for a vigilance request of the VC to go unanswered (10 s to answer), and its
+EB stopped the train with nobody to rearm it. At 2× the outage stays under 10 simulated
+seconds."""
 """Each step of the journey within this much wall time (×10 simulated; a loaded machine)."""
 EAST_STOP_M = 1975.0
+PAST_NORTH_M = 650.0
+"""100 m past the north platform (550 m)."""
+VIGILANCE_FIRST_S, VIGILANCE_PERIOD_S = 0.05, 30.0
+"""The onboard VC's vigilance requests: the first at 0.05 s, then every 30 s (10 s to answer)."""
+CUT_AFTER_REQUEST_S = (3.0, 8.0)
+"""The cut starts this long after a request [simulated s]: answered, the next 22 s away."""
 
 
 @contextmanager
@@ -96,6 +108,27 @@ class Rest:
         pytest.fail(f"{what} not reached; last status {self.status()}")
 
 
+def _safe_to_cut(status: dict[str, object]) -> bool:
+    since_request_s = (float(status["sim_time_s"]) - VIGILANCE_FIRST_S) % VIGILANCE_PERIOD_S  # type: ignore[arg-type]
+    answered = not status["vital_control"]["operator_requests"]  # type: ignore[index]
+    return (
+        float(status["position_m"]) > PAST_NORTH_M  # type: ignore[arg-type]
+        and CUT_AFTER_REQUEST_S[0] <= since_request_s <= CUT_AFTER_REQUEST_S[1]
+        and answered
+    )
+
+
+def _reports_flow(rest: Rest) -> bool:
+    """Whether the vehicle's reports arrive fresh and its simulated time runs on."""
+    first = rest.status()
+    time.sleep(1.0)
+    then = rest.status()
+    if not first or not then:
+        return False
+    ran_s = float(then["sim_time_s"]) - float(first["sim_time_s"])  # type: ignore[arg-type]
+    return float(then["age_s"]) < 0.5 and ran_s >= 0.5 * SPEED  # type: ignore[arg-type]
+
+
 def _pki(directory: Path) -> Path:
     init_ca(directory)
     for name, role in (
@@ -133,7 +166,7 @@ def _journey(rest: Rest) -> None:
             {
                 "id": "east",
                 "stopping_point_id": "east",
-                "arrival_time_s": 300.0,
+                "arrival_time_s": 200.0,
                 "end_of_journey": True,
             }
         ],
@@ -152,8 +185,9 @@ def _journey(rest: Rest) -> None:
 
 @pytest.mark.xfail(
     strict=False,
-    reason="passed alone; in the full suite of 2026-11-28 the vehicle came back stopped at "
-    "422 m with its reports not at their rate within 30 s: under investigation (issue 23)",
+    reason="on a loaded machine the session, back after the restore, was lost again some 5 s "
+    "later without a cut (2026-12-06: the router-to-router link flapping as the stalled "
+    "connection expires), and a vigilance answer then came too late for the VC: issue 23",
 )
 def test_a_journey_through_two_linked_routers_survives_the_loss_of_their_link(
     tmp_path: Path,
@@ -185,7 +219,7 @@ def test_a_journey_through_two_linked_routers_survives_the_loss_of_their_link(
         assert wait_for(lambda: accepts_connections("127.0.0.1", http_port), 60.0)
         onboard = [
             "onboard", "--vehicle", VEHICLE, "--zenoh", f"tls/127.0.0.1:{port_b}",
-            "--pki", str(pki), "--speed", "10", "--track-dir", str(tmp_path / "track"),
+            "--pki", str(pki), "--speed", str(SPEED), "--track-dir", str(tmp_path / "track"),
             "--no-vc-datalog",
         ]  # fmt: skip
         stack.enter_context(_process("onboard", onboard, logs))
@@ -193,14 +227,21 @@ def test_a_journey_through_two_linked_routers_survives_the_loss_of_their_link(
         # The onboard fetched the line from the trackside across both routers.
         assert wait_for(rest.alive, 60.0), (logs / "onboard.log").read_text()[-3000:]
         _journey(rest)
-
+        # Past the north platform, the journey's end (east) is the next stopping point: a
+        # fallback stop for the lost session is then the journey's own. And just after a
+        # vigilance request of the VC was answered: the outage (the link's, then the new
+        # handshake's) must not hold back the answer to one, or the VC brakes the train with
+        # nobody to rearm it (both seen in the full suite on a loaded machine).
+        rest.until(_safe_to_cut, "past north, between two vigilance requests")
         assert proxy.cut() >= 1  # the router-to-router connection
         assert wait_for(lambda: not rest.alive(), 15.0), "the vehicle stayed alive, link cut"
-        time.sleep(2.0)  # 20 simulated seconds without the trackside
+        time.sleep(0.5)  # with the time to notice the cut, some 4 simulated seconds
         proxy.restore()
         assert wait_for(rest.alive, 30.0), "the vehicle did not come back"
-        # Its reports flow again at their rate: the session was shaken hands anew.
-        assert wait_for(lambda: rest.status().get("rate_ok") is True, 30.0), rest.status()
+        # Its reports flow again, fresh: a new session was shaken hands. (Not ``rate_ok``: the
+        # trackside expects 5 reports a second of wall time, the onboard sends 5 a simulated
+        # second, at SPEED times that.)
+        assert wait_for(lambda: _reports_flow(rest), 30.0), rest.status()
         end = rest.until(
             lambda s: s["speed_mps"] == 0.0 and abs(float(s["position_m"]) - EAST_STOP_M) <= 1.0,  # type: ignore[arg-type]
             "standstill at east",

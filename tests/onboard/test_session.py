@@ -73,6 +73,33 @@ def test_one_status_report_outstanding_and_loss_without_acknowledgements() -> No
     assert c.request(1.4 + c.retry_s, track_data_version=None) is not None
 
 
+@pytest.mark.parametrize("fails", ["unanswered", "timed out"])
+def test_a_trackside_back_while_a_request_is_out_is_asked_again_at_once(fails: str) -> None:
+    """The session is lost while the link is down, and the request sent at once goes into the
+    void; the trackside's token comes back before that request has failed. Its failure is then
+    followed by a new request at once, not 30 s later (found by the two-router test, where the
+    VC's vigilance went unanswered for want of a session while the link was long back)."""
+    c = client()
+    c.request(0.0, track_data_version=None)
+    c.on_response(accept(timeout_s=3.0), 0.0)
+    assert c.step(3.1)  # lost
+    assert c.request(3.1, track_data_version=None) is not None
+    c.trackside_appeared(4.0)  # while the request is out: nothing to do yet
+    assert c.state is ClientState.CSR
+    if fails == "unanswered":
+        c.on_response(None, 4.5)
+        failed_s = 4.5
+    else:
+        assert not c.step(3.1 + c.request_timeout_s + 0.1)
+        failed_s = 3.1 + c.request_timeout_s + 0.1
+    assert c.state is ClientState.NCE
+    assert c.request(failed_s, track_data_version=None) is not None
+    # That one failing too, the retry applies again.
+    c.on_response(None, failed_s + 0.5)
+    assert c.request(failed_s + 1.0, track_data_version=None) is None
+    assert c.request(failed_s + 0.5 + c.retry_s, track_data_version=None) is not None
+
+
 def test_stale_and_misaddressed_journey_profiles_are_rejected_and_counted() -> None:
     c = client()
     point = m.TimingPoint(
