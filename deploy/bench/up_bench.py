@@ -47,6 +47,7 @@ STOP_TOLERANCE_M = 1.0
 SAMPLE_PERIOD_S = 2.0
 """How often the parts' CPU and memory and the vehicles' liveness are sampled [s]."""
 POLL_PERIOD_S = 0.5
+MAX_REFUSALS = 5
 _TICKS_PER_S = os.sysconf("SC_CLK_TCK")
 _PAGE_BYTES = os.sysconf("SC_PAGE_SIZE")
 _MB = 1024 * 1024
@@ -87,6 +88,9 @@ class Journey:
     ended_s: float | None = None
     stop_error_m: float | None = None
     failure: str | None = None
+    refusals: int = 0
+    """Engage commands refused before one was accepted."""
+    last_refusal: str | None = None
 
 
 @dataclass
@@ -238,6 +242,12 @@ def _advance(operator: _Operator, journey: Journey, status: dict[str, Any]) -> N
         journey.step = 4
     elif journey.step == 4 and status["ato_state"] == "RE":
         failure = operator.command(vehicle, "engage")
+        if failure is not None and journey.refusals < MAX_REFUSALS:
+            # Refused (the vehicle's state moved on since the status read): press again at
+            # the next look, as a driver at the console would.
+            journey.refusals += 1
+            journey.last_refusal = failure
+            return
         journey.step = 5
     elif journey.step == 5 and status["ato_state"] == "NA" and status["speed_mps"] == 0.0:
         journey.ended_s = time.monotonic() - journey.started_s
@@ -305,12 +315,15 @@ def bench_up(
             result.left_behind = running_pids(fleet.parts)
             return result
         result.up_s = time.monotonic() - started
+        operator = None
         try:
             operator = _Operator(fleet)
             result.journeys = [Journey(v) for v in plan.vehicle_ids()[: result.driven]]
             with _Sampler(fleet, result, operator.alive):
                 _drive(operator, result.journeys, timeout_s)
         finally:
+            if operator is not None:
+                operator.client.close()
             fleet.stop()
             result.left_behind = running_pids(fleet.parts)
             result.exit_codes = {p.name: p.returncode for p in fleet.parts}
@@ -344,6 +357,10 @@ def print_up_bench(result: UpBenchResult, console: Console) -> None:
     for journey in result.journeys:
         if journey.failure is not None:
             table.add_row(f"{journey.vehicle} failed", journey.failure)
+        if journey.refusals:
+            table.add_row(
+                f"{journey.vehicle}: engage refused {journey.refusals}×", str(journey.last_refusal)
+            )
     dropped = ", ".join(f"{v} ({n})" for v, n in sorted(result.not_alive.items())) or "none"
     table.add_row("vehicles seen not alive (samples)", dropped)
     onboards = [u for name, u in result.usage.items() if name.startswith("onboard-")]

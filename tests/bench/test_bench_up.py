@@ -59,7 +59,7 @@ def test_a_bench_passes_only_when_everything_held() -> None:
 @pytest.mark.slow
 def test_bench_up_drives_a_vehicle_of_a_fleet_and_shuts_it_down() -> None:
     result = CliRunner().invoke(
-        app, ["bench", "up", "--vehicles", "2", "--drive", "1", "--speed", "10"]
+        app, ["bench", "up", "--vehicles", "1", "--drive", "1", "--speed", "20"]
     )
     assert result.exit_code == 0, result.output
     text = "".join(result.output.split())
