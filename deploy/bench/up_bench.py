@@ -36,6 +36,7 @@ from rich.table import Table
 
 from deploy.stats import percentiles
 from deploy.up import Fleet, UpError, UpPlan, running_pids
+from protocol.units import MPS_PER_KMH
 
 __all__ = ["UpBenchResult", "bench_up", "print_up_bench"]
 
@@ -206,7 +207,7 @@ class _Operator:
             "id": f"bench-east-{vehicle.lower()}-{time.monotonic_ns()}",
             "line_id": "bologna-ring",
             "start_position_m": position_m,
-            "max_speed_mps": 40 / 3.6,
+            "max_speed_mps": 40 * MPS_PER_KMH,
             "timing_points": [
                 {
                     "id": "east",
