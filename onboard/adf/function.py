@@ -303,6 +303,7 @@ class DrivingFunction:
         u_ad = 0.0
         if self.sc.needs_autonomous:
             self._drive(self.replanner.renew_stale_leg(now_s, position_m, speed_mps))
+            self._drive(self.replanner.released(now_s, position_m, speed_mps))
             self._drive(self.replanner.follow_authority(now_s, position_m, speed_mps))
             # Not while the ATO-OB cuts traction or brakes: it holds the train back.
             if traction_allowed and not service_brake and self.autonomous is not None:

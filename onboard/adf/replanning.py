@@ -10,6 +10,8 @@ from the train's measured position and speed, under the ETCS limits it keeps, wh
 - a TSR is put in force or revoked (:meth:`~LegReplanner.under_new_limits`), and each later
   leg of the journey, planned under the old limits, as it begins
   (:meth:`~LegReplanner.renew_stale_leg`);
+- the ETCS permitted speed that capped the leg when it was planned has risen
+  (:meth:`~LegReplanner.released`);
 - a stop is skipped, a train hold released, a fallback cancelled
   (:meth:`~LegReplanner.to_next_stop`);
 - the trackside is lost while engaged (:meth:`~LegReplanner.fallback_stop`).
@@ -34,6 +36,7 @@ from onboard.adf.odp_energy import (
 )
 from onboard.adf.progress import STANDSTILL_MPS, STOP_TOLERANCE_M, JourneyProgress
 from onboard.plant.point_mass import PointMassParameters
+from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap
 
 __all__ = ["LegReplanner"]
@@ -72,6 +75,12 @@ BEHIND_PLAN_M = 25.0
 """A train this far behind its reference [m] (held back by a permitted speed that rose later
 than planned, a brake that gave less, a fallback law) has its leg replanned from where it is:
 the time-based reference would otherwise reach the stop, and leave it, before the train."""
+RELEASED_MPS = 2.0 * MPS_PER_KMH
+"""A leg planned under ETCS's permitted speed where that was below the journey's cap (a TSR
+the train's rear is still inside, a braking curve, staff responsible) is capped at it over its
+whole length: it is replanned once the permitted speed has risen this much above that cap
+[m/s]. Issue 18, gen-1-430: the leg from east, replanned inside a 20 km/h TSR, ran the 4 km
+to north at 19.5 km/h and missed the stop."""
 BEHIND_RETRY_S = 5.0
 """After a catch-up replan that could not be made, the next try comes this much later [s]."""
 
@@ -95,6 +104,9 @@ class LegReplanner:
         self._eoa_planned_for_m: float | None = None
         """The EoA [m from the origin] the stop at ``eoa_stop_m`` was planned for."""
         self._catch_up_after_s = -math.inf
+        self._held_at_mps: float | None = None
+        """The cap [m/s] of the plan in force when ETCS's permitted speed set it (below the
+        journey's cap), else None."""
         self._stale_stops: set[str] = set()
         """The stops whose legs were planned before the MRSP last changed (a TSR put in force
         or revoked): each is replanned under the limits in force as it becomes the next stop."""
@@ -104,6 +116,7 @@ class LegReplanner:
         self.fallback_active = False
         self.eoa_stop_m = None
         self._stale_stops = set()
+        self._held_at_mps = None
 
     def set_etcs_limits(
         self, permitted_speed_mps: float, eoa_ahead_m: float | None, *, position_m: float
@@ -143,6 +156,7 @@ class LegReplanner:
         except InfeasibleLegError:
             return None  # too close to stop on the plan: the current reference stops there anyway
         self.fallback_active = True
+        self._held_at_mps = None
         return plan
 
     def to_next_stop(self, now_s: float, *, position_m: float, speed_mps: float) -> OdpPlan | None:
@@ -166,26 +180,51 @@ class LegReplanner:
         stop = self.progress.next_stop(position_m)
         if stop is None:
             return None
-        travelled = self.progress.travelled_m(position_m)
+        if not self.fallback_active:
+            self.eoa_stop_m = None
+            # The journey's later legs were planned under the old limits: each is redone as it
+            # begins (:meth:`renew_stale_leg`). A TSR on the ring is met again a lap on.
+            journey = self.progress.journey
+            self._stale_stops = {
+                later.timing_point_id
+                for later in journey.stops
+                if later.distance_m > stop.distance_m
+            }
+        return self._current_leg(now_s, self.progress.travelled_m(position_m), speed_mps, stop)
+
+    def released(self, now_s: float, position_m: float, speed_mps: float) -> OdpPlan | None:
+        """The current leg replanned, once, when ETCS's permitted speed capped it and has risen
+        :data:`RELEASED_MPS` above that cap since (the train's rear has left a TSR); None
+        otherwise."""
+        held = self._held_at_mps
+        if held is None or self.progress.journey is None:
+            return None
+        if self.permitted_speed_mps - MRSP_MARGIN_MPS < held + RELEASED_MPS:
+            return None
+        self._held_at_mps = None
+        stop = self.progress.next_stop(position_m)
+        if stop is None:
+            return None
+        return self._current_leg(now_s, self.progress.travelled_m(position_m), speed_mps, stop)
+
+    def _current_leg(
+        self, now_s: float, travelled_m: float, speed_mps: float, stop: JourneyStop
+    ) -> OdpPlan | None:
+        """The current leg under the limits in force: to the stop for the EoA when there is
+        one, the fallback's stop as soon as it can be, else the next stop on schedule or
+        later."""
+        if self.eoa_stop_m is not None:
+            return self.replan(now_s, travelled_m, speed_mps, self.eoa_stop_m, arrival_s=None)
         if self.fallback_active:
-            if self.eoa_stop_m is not None:
-                return self.replan(now_s, travelled, speed_mps, self.eoa_stop_m, arrival_s=None)
             return self.replan(
                 now_s,
-                travelled,
+                travelled_m,
                 speed_mps,
                 stop.distance_m,
                 arrival_s=None,
                 braking_mps2=MAX_BRAKING_MPS2,
             )
-        self.eoa_stop_m = None
-        # The journey's later legs were planned under the old limits: each is redone as it
-        # begins (:meth:`renew_stale_leg`). A TSR on the ring is met again a lap on.
-        journey = self.progress.journey
-        self._stale_stops = {
-            later.timing_point_id for later in journey.stops if later.distance_m > stop.distance_m
-        }
-        return self._on_schedule_or_later(now_s, travelled, speed_mps, stop)
+        return self._on_schedule_or_later(now_s, travelled_m, speed_mps, stop)
 
     def renew_stale_leg(self, now_s: float, position_m: float, speed_mps: float) -> OdpPlan | None:
         """The leg to the next stop replanned under the limits in force, once, when it was
@@ -302,7 +341,9 @@ class LegReplanner:
         plan = journey.plan
         cap = plan.cap_mps or self.track_map.mrsp_mps(journey.start_chainage_m)
         # Under the ETCS permitted speed by the plan's margin, as under the MRSP: a reference
-        # on the NMPC's ceiling makes the NLP degenerate.
+        # on the NMPC's ceiling makes the NLP degenerate. It caps the whole leg, until it rises
+        # (:meth:`released`).
+        held = self.permitted_speed_mps - MRSP_MARGIN_MPS < cap
         cap = min(cap, self.permitted_speed_mps - MRSP_MARGIN_MPS)
         depart_s = self._departure_s(now_s, travelled_m, speed_mps)
         braking = braking_mps2 or (
@@ -331,6 +372,7 @@ class LegReplanner:
                 continue
         else:
             return None
+        self._held_at_mps = max(cap, speed_mps) if held else None
         legs = list(replanned.legs)
         if arrival_s is not None:
             legs += self._later_legs(plan, stop_m, arrival_end_s=legs[-1].end_s)

@@ -502,3 +502,42 @@ def test_behind_its_plan_the_train_keeps_under_a_target_speed_by_etcs_over_read(
     assert last_metres_kmh
     pulse_kmh = OdometerParameters().speed_resolution_mps * 3.6  # 0.26 km/h
     assert max(last_metres_kmh) <= 20.0 - pulse_kmh
+
+
+def test_a_leg_capped_by_the_permitted_speed_is_replanned_when_it_rises() -> None:
+    """A TSR of 20 km/h over east (1767–2011 m) comes into force as the train stands there: the
+    leg to south is replanned with ETCS's permitted speed (20 km/h, the train inside the TSR) as
+    its cap, and replanned again, at the journey's cap, once the permitted speed has risen (the
+    train's rear out of the TSR). Issue 18, gen-1-430: the capped leg ran the 4 km to the next
+    stop at 19.5 km/h and missed it."""
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    adf = DrivingFunction(ring, URV_PARAMETERS)
+    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
+    adf.start_journey(journey, 0.0, position_m=200.0)
+    adf.engage(0.0)
+    east = journey.stops[0]
+    at_east = 200.0 + east.distance_m
+    adf.progress.update_served(at_east, speed_mps=0.0)
+    ring.add_temporary_speed_restriction(
+        TemporarySpeedRestriction(id="tsr-5", start_m=1767.5, end_m=2011.5, speed_mps=20 / 3.6)
+    )
+    adf.set_etcs_limits(20 / 3.6, None, position_m=at_east)
+    adf.speed_limits_changed(302.0, position_m=at_east, speed_mps=0.0)
+
+    def top_speed_beyond_tsr() -> float:
+        plan = adf.autonomous.plan  # type: ignore[union-attr]
+        samples = [plan.reference(320.0 + 0.5 * k) for k in range(460)]
+        return max(speed for distance, speed in samples if distance >= 2100.0 - 200.0)
+
+    assert top_speed_beyond_tsr() <= 20 / 3.6  # capped at the permitted speed
+    capped = adf.autonomous.plan  # type: ignore[union-attr]
+    assert capped.legs[0].end_s > journey.stops[1].arrival_s + 10.0  # late at south
+    assert adf.replanner.released(330.0, 2005.0, 20 / 3.6) is None  # still inside
+    adf.set_etcs_limits(80 / 3.6, None, position_m=2030.0)
+    plan = adf.replanner.released(332.0, 2030.0, 19.5 / 3.6)
+    assert plan is not None
+    adf._drive(plan)
+    assert top_speed_beyond_tsr() > 20 / 3.6 + 1.0  # no longer capped
+    south = journey.stops[1]
+    assert plan.legs[0].end_s <= south.arrival_s + 1e-6  # back on schedule
+    assert adf.replanner.released(333.0, 2040.0, 25 / 3.6) is None  # once
