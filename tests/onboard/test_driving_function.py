@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from onboard.adf.function import DrivingFunction, NoJourneyError
-from onboard.adf.journey import plan_journey
+from onboard.adf.journey import JourneyPlan, plan_journey
 from onboard.adf.odp import InfeasibleLegError
 from onboard.etcs.braking import BrakingModel, Limit, Target, TargetKind
 from onboard.etcs.odometer import OdometerParameters
@@ -395,19 +395,25 @@ def test_a_tsr_put_in_force_during_the_fallback_stop_is_planned_for() -> None:
     assert samples[-1] == pytest.approx((1775.0, 0.0), abs=1e-6)  # east, the fallback's stop
 
 
-def test_a_leg_replanned_while_the_train_stands_at_a_stop_leaves_after_its_dwell() -> None:
-    """A TSR comes into force on the next leg as the train stands at east, before east's
-    departure (320 s): the replanned leg leaves at the departure, not at once. Issue 18,
-    gen-1-152: the reference left a dwell (24 s) ahead of the train, which could not catch up
-    (ETCS's permitted speed under the MRSP up to the TSR)."""
+def _standing_at_east() -> tuple[TrackMap, DrivingFunction, JourneyPlan]:
+    """A fresh ring, and the ADF engaged on the field journey from 200 m, standing at east."""
     ring = TrackMap(load_seed_line("bologna-ring"))
     adf = DrivingFunction(ring, URV_PARAMETERS)
     journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
     adf.start_journey(journey, 0.0, position_m=200.0)
     adf.engage(0.0)
+    adf.progress.update_served(200.0 + journey.stops[0].distance_m, speed_mps=0.0)  # arrived
+    return ring, adf, journey
+
+
+def test_a_leg_replanned_while_the_train_stands_at_a_stop_leaves_after_its_dwell() -> None:
+    """A TSR comes into force on the next leg as the train stands at east, before east's
+    departure (320 s): the replanned leg leaves at the departure, not at once. Issue 18,
+    gen-1-152: the reference left a dwell (24 s) ahead of the train, which could not catch up
+    (ETCS's permitted speed under the MRSP up to the TSR)."""
+    ring, adf, journey = _standing_at_east()
     east = journey.stops[0]
     at_east = 200.0 + east.distance_m
-    adf.progress.update_served(at_east, speed_mps=0.0)  # arrived
     assert adf.next_stop(at_east).timing_point_id == "south"  # type: ignore[union-attr]
     ring.add_temporary_speed_restriction(
         TemporarySpeedRestriction(id="tsr-2", start_m=2300.0, end_m=2500.0, speed_mps=20 / 3.6)
@@ -510,14 +516,9 @@ def test_a_leg_capped_by_the_permitted_speed_is_replanned_when_it_rises() -> Non
     its cap, and replanned again, at the journey's cap, once the permitted speed has risen (the
     train's rear out of the TSR). Issue 18, gen-1-430: the capped leg ran the 4 km to the next
     stop at 19.5 km/h and missed it."""
-    ring = TrackMap(load_seed_line("bologna-ring"))
-    adf = DrivingFunction(ring, URV_PARAMETERS)
-    journey = plan_journey(ring, URV_PARAMETERS, field_journey(), start_chainage_m=200.0)
-    adf.start_journey(journey, 0.0, position_m=200.0)
-    adf.engage(0.0)
+    ring, adf, journey = _standing_at_east()
     east = journey.stops[0]
     at_east = 200.0 + east.distance_m
-    adf.progress.update_served(at_east, speed_mps=0.0)
     ring.add_temporary_speed_restriction(
         TemporarySpeedRestriction(id="tsr-5", start_m=1767.5, end_m=2011.5, speed_mps=20 / 3.6)
     )
