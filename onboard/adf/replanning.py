@@ -345,7 +345,7 @@ class LegReplanner:
         # (:meth:`released`).
         held = self.permitted_speed_mps - MRSP_MARGIN_MPS < cap
         cap = min(cap, self.permitted_speed_mps - MRSP_MARGIN_MPS)
-        depart_s = self._departure_s(now_s, travelled_m, speed_mps)
+        depart_s = _departure_s(self.progress, now_s, travelled_m, speed_mps)
         braking = braking_mps2 or (
             AUTHORITY_BRAKING_MPS2 if arrival_s is None else MAX_BRAKING_MPS2
         )
@@ -375,7 +375,7 @@ class LegReplanner:
         self._held_at_mps = max(cap, speed_mps) if held else None
         legs = list(replanned.legs)
         if arrival_s is not None:
-            legs += self._later_legs(plan, stop_m, arrival_end_s=legs[-1].end_s)
+            legs += _later_legs(self.progress, plan, stop_m, arrival_end_s=legs[-1].end_s)
         return OdpPlan(
             [OdpLeg(leg.start_s, leg.start_distance_m, leg.segment) for leg in legs],
             start_chainage_m=plan.start_chainage_m,
@@ -383,32 +383,38 @@ class LegReplanner:
             cap_mps=plan.cap_mps,
         )
 
-    def _departure_s(self, now_s: float, travelled_m: float, speed_mps: float) -> float:
-        """When a leg replanned at ``now_s`` leaves [s from the journey's start]: now, or, for
-        a train standing at a stop before its departure (a TSR put in force as it arrived), at
-        that departure: the stop keeps its dwell, during which the ATO-OB holds the train. A
-        leg leaving at once ran its reference a dwell ahead of the train (gen-1-152)."""
-        journey_s = self.progress.journey_time_s(now_s)
-        standing = self.progress.stopped_at(self.progress.origin_m + travelled_m, speed_mps)
-        if standing is None:
-            return journey_s
-        return max(journey_s, self.progress.departure_s(standing))
 
-    def _later_legs(self, plan: OdpPlan, stop_m: float, *, arrival_end_s: float) -> list[OdpLeg]:
-        """The journey's legs after the stop at ``stop_m``; when the replanned leg arrives
-        there at ``arrival_end_s``, too late for the scheduled departure, they are delayed so
-        that the stop keeps its scheduled dwell (a reference that left before the train had
-        arrived would run it through the stop)."""
-        later = [leg for leg in plan.legs if leg.start_distance_m >= stop_m - STOP_TOLERANCE_M]
-        stop = self.progress.stop_near(stop_m)
-        if not later or stop is None:
-            return later
-        delay_s = arrival_end_s + (stop.departure_s - stop.arrival_s) - later[0].start_s
-        if delay_s <= 0.0:
-            self.progress.delay_departure(stop, None)
-            return later
-        self.progress.delay_departure(stop, later[0].start_s + delay_s)
-        return [OdpLeg(leg.start_s + delay_s, leg.start_distance_m, leg.segment) for leg in later]
+def _departure_s(
+    progress: JourneyProgress, now_s: float, travelled_m: float, speed_mps: float
+) -> float:
+    """When a leg replanned at ``now_s`` leaves [s from the journey's start]: now, or, for
+    a train standing at a stop before its departure (a TSR put in force as it arrived), at
+    that departure: the stop keeps its dwell, during which the ATO-OB holds the train. A
+    leg leaving at once ran its reference a dwell ahead of the train (gen-1-152)."""
+    journey_s = progress.journey_time_s(now_s)
+    standing = progress.stopped_at(progress.origin_m + travelled_m, speed_mps)
+    if standing is None:
+        return journey_s
+    return max(journey_s, progress.departure_s(standing))
+
+
+def _later_legs(
+    progress: JourneyProgress, plan: OdpPlan, stop_m: float, *, arrival_end_s: float
+) -> list[OdpLeg]:
+    """The journey's legs after the stop at ``stop_m``; when the replanned leg arrives
+    there at ``arrival_end_s``, too late for the scheduled departure, they are delayed so
+    that the stop keeps its scheduled dwell (a reference that left before the train had
+    arrived would run it through the stop)."""
+    later = [leg for leg in plan.legs if leg.start_distance_m >= stop_m - STOP_TOLERANCE_M]
+    stop = progress.stop_near(stop_m)
+    if not later or stop is None:
+        return later
+    delay_s = arrival_end_s + (stop.departure_s - stop.arrival_s) - later[0].start_s
+    if delay_s <= 0.0:
+        progress.delay_departure(stop, None)
+        return later
+    progress.delay_departure(stop, later[0].start_s + delay_s)
+    return [OdpLeg(leg.start_s + delay_s, leg.start_distance_m, leg.segment) for leg in later]
 
 
 def _authority_reach_m(
