@@ -10,6 +10,7 @@ from pydantic_settings import BaseSettings, NoDecode, SettingsConfigDict
 
 from protocol import DEFAULT_ROUTER_ENDPOINT, TlsFiles, ZenohSettings
 from protocol.messages import OperatorRequestKind
+from trackdb.headway import PlanningMode
 
 __all__ = ["DEFAULT_WEBUI_DIR", "Settings"]
 
@@ -69,6 +70,20 @@ class Settings(BaseSettings):
         ge=0.0,
         le=10_000.0,
         description="An MA held behind a train is extended by at least this much at a time [m]",
+    )
+    journey_planning: PlanningMode = Field(
+        default=PlanningMode.ADJUST,
+        description="With the separation on, each journey is planned against the other trains' "
+        "on its line before it is sent: 'adjust' delays a conflicting one, 'check' refuses it, "
+        "'off' leaves the moving block alone to keep the trains apart (docs/decisions.md, "
+        "'Issue 23: journeys planned against each other')",
+    )
+    journey_planning_max_delay_s: float = Field(
+        default=600.0,
+        ge=0.0,
+        le=86_400.0,
+        description="The longest delay the planner gives a journey; one that needs more is "
+        "refused [s]",
     )
 
     command_timeout_s: float = Field(

@@ -27,6 +27,7 @@ from protocol import messages as m
 from protocol import open_session
 from protocol.messages import StatusReport
 from trackdb import LineNotFoundError
+from trackdb.headway import HeadwayRule
 from trackdb.storage import current_version, line_versions
 from trackside.api.exception_handlers import add_exception_handlers
 from trackside.api.routes import audit as audit_routes
@@ -36,6 +37,7 @@ from trackside.bridge import ZenohBridge
 from trackside.config import Settings
 from trackside.db import create_database_engine, migrate
 from trackside.edge import EdgeMiddleware, content_security_policy, inline_style_hashes
+from trackside.journey_planner import JourneyPlanner
 from trackside.live import LiveHub
 from trackside.log_redaction import install_token_redaction
 from trackside.metrics import add_metrics
@@ -276,11 +278,20 @@ def _start_separation(
 ) -> None:
     """The RBC's separation of the trains on a line, when ``separation_margin_m`` is set: fed
     with every report of an open session before it is acknowledged, the train's length from its
-    handshake."""
+    handshake; and the planning of their journeys against each other's."""
     app.state.separation = None
     if settings.separation_margin_m is None:
         return
-    block = MovingBlock(margin_m=settings.separation_margin_m, ring_length_m=_ring_lengths(factory))
+    ring_lengths = _ring_lengths(factory)
+    block = MovingBlock(margin_m=settings.separation_margin_m, ring_length_m=ring_lengths)
+    app.state.commands.planner = JourneyPlanner(
+        HeadwayRule(margin_m=settings.separation_margin_m),
+        mode=settings.journey_planning,
+        fleet=bridge.fleet,
+        lengths=bridge.train_length_m,
+        ring_length_m=ring_lengths,
+        max_delay_s=settings.journey_planning_max_delay_s,
+    )
     supervisor = SeparationSupervisor(
         rbc_emulator,
         block,

@@ -150,6 +150,7 @@ class FleetRun:
                     ),
                     "separation_margin_m": spec.separation.margin_m,
                     "separation_extension_step_m": spec.separation.extension_step_m,
+                    "journey_planning": spec.separation.plan_journeys,
                 }
             )
             lead.start()

@@ -17,6 +17,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from deploy.scenario.conditions import Condition, parse_condition
+from trackdb.headway import PlanningMode
 from trackdb.journey import JourneyTimingPoint
 from trackdb.railjson import DEFAULT_LINE_SPEED_KMH
 
@@ -403,6 +404,10 @@ class SeparationSpec(_Model):
 
     margin_m: float = Field(gt=0.0, le=10_000.0, allow_inf_nan=False)
     extension_step_m: float = Field(default=50.0, ge=0.0, le=10_000.0, allow_inf_nan=False)
+    plan_journeys: PlanningMode = PlanningMode.OFF
+    """The trackside's planning of the journeys against each other (``trackside.journey_planner``):
+    off unless asked for, so that a scenario can run trains into each other's MAs; the service's
+    default is ``adjust``."""
 
 
 MULTI_TRAIN_FAULTS_REFUSED = ("trackside_restart", "zenoh_link_loss")

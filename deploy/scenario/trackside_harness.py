@@ -279,4 +279,7 @@ class TracksideHarness:
         if response.status_code != 200:
             return False, f"{response.status_code}: {response.text}"
         reply = response.json()
-        return bool(reply["accepted"]), reply.get("reason")
+        detail = reply.get("reason")
+        if reply.get("delay_s"):  # the trackside's planner timed it later (issue 23)
+            detail = f"planned {reply['delay_s']:g} s later: {reply.get('conflict')}"
+        return bool(reply["accepted"]), detail

@@ -243,3 +243,36 @@ def test_a_train_stalled_by_a_fault_holds_the_one_behind(tmp_path: Path) -> None
     assert fleet.min_distance_m >= 40.0
     assert outcome.trains["URV2"].kpis.min_eoa_margin_m is not None
     assert outcome.trains["URV2"].kpis.min_eoa_margin_m > 0.0
+
+
+@pytest.mark.e2e
+@pytest.mark.scenario
+def test_the_trackside_delays_a_journey_timed_into_the_train_ahead(tmp_path: Path) -> None:
+    """The library's two-trains-planned cut to 300 s: the trackside's planner delays the
+    journey of the train behind (stored as its next version and sent) so that it keeps beyond
+    the reach of its EoA; it serves the east platform on its delayed time, never held."""
+    text = (SCENARIOS / "two-trains-planned.toml").read_text()
+    short = tmp_path / "planned.toml"
+    short.write_text(re.sub(r"(?m)^duration_s = .*$", "duration_s = 300.0", text, count=1))
+    outcome = run_scenario(load_scenario(str(short)), RunOptions(fast=True))
+    lead, behind = outcome.kpis, outcome.trains["URV2"].kpis
+    (sent,) = [action for action in behind.actions if action.action == "send_journey"]
+    assert sent.accepted
+    assert sent.detail is not None
+    found = re.match(r"planned (\d+) s later: URV2 would run .* behind URV1", sent.detail)
+    assert found is not None, sent.detail
+    delay_s = float(found.group(1))
+    assert 0.0 < delay_s <= 600.0
+    (lead_sent,) = [action for action in lead.actions if action.action == "send_journey"]
+    assert lead_sent.detail is None  # the first journey on the line goes as stored
+    (east,) = behind.stops
+    assert east.planned_arrival_s == pytest.approx(185.0 + delay_s)
+    assert abs(east.arrival_error_s) <= 2.0
+    assert behind.eoa_stops == []
+    fleet = lead.fleet
+    assert fleet is not None
+    assert [train.held_s for train in fleet.trains] == [0.0, 0.0]
+    assert fleet.min_distance_m is not None
+    assert fleet.min_distance_m > 150.0
+    for kpis in (lead, behind):
+        assert kpis.etcs_sb_count == kpis.etcs_eb_count == kpis.vc_eb_count == 0

@@ -20,6 +20,7 @@ from trackdb.storage import LineSummary
 from trackside.bridge import VehicleSnapshot
 from trackside.models import AuditEntry, Role, TelemetrySample, User, VehicleEvent
 from trackside.services.audit import AuditResult
+from trackside.services.commands import JourneySent
 from trackside.services.journeys import StoredJourney
 from trackside.services.lines import LineProfile
 
@@ -266,11 +267,25 @@ class JourneyProfileAckPublic(BaseModel):
     version: int
     accepted: bool
     reason: str | None
+    delay_s: float = Field(
+        default=0.0,
+        description="How much later the trackside's planner timed the journey, to keep clear "
+        "of the other trains on the line [s]; the version answered is the delayed one",
+    )
+    conflict: str | None = Field(
+        default=None, description="The conflict the journey as stored had, if the planner found one"
+    )
 
     @classmethod
-    def from_ack(cls, ack: m.JourneyProfileAck) -> JourneyProfileAckPublic:
+    def from_sent(cls, sent: JourneySent) -> JourneyProfileAckPublic:
+        ack = sent.ack
         return cls(
-            journey_id=ack.journey_id, version=ack.version, accepted=ack.accepted, reason=ack.reason
+            journey_id=ack.journey_id,
+            version=ack.version,
+            accepted=ack.accepted,
+            reason=ack.reason,
+            delay_s=sent.delay_s,
+            conflict=None if sent.conflict is None else str(sent.conflict),
         )
 
 

@@ -13,13 +13,15 @@ from __future__ import annotations
 
 import itertools
 import time
+from dataclasses import dataclass
 from typing import Any
 
 from sqlalchemy.orm import Session, sessionmaker
 
 from protocol import ProtocolError, RequestTimeoutError
 from protocol import messages as m
-from trackdb.journey import journey_profile_message
+from trackdb.headway import Conflict
+from trackdb.journey import JourneyCheck, journey_profile_message
 from trackside.bridge import ZenohBridge
 from trackside.errors import (
     ConflictError,
@@ -28,11 +30,28 @@ from trackside.errors import (
     VehicleLinkError,
     VehicleTimeoutError,
 )
+from trackside.journey_planner import JourneyPlanner, PlannedJourney
 from trackside.models import User
 from trackside.services import audit, holds
-from trackside.services.journeys import get_journey, validate_journey
+from trackside.services.journeys import (
+    StoredJourney,
+    create_journey,
+    get_journey,
+    validate_journey,
+)
 
-__all__ = ["CommandService"]
+__all__ = ["CommandService", "JourneySent"]
+
+
+@dataclass(frozen=True, slots=True)
+class JourneySent:
+    """A journey profile's outcome: the vehicle's JPAck and what the planner did."""
+
+    ack: m.JourneyProfileAck
+    delay_s: float = 0.0
+    """How much later the planner timed the journey than it was stored [s]."""
+    conflict: Conflict | None = None
+    """The conflict the journey as stored had with another train's plan."""
 
 
 class CommandService:
@@ -50,6 +69,8 @@ class CommandService:
         self._bridge = bridge
         self.timeout_s = timeout_s
         self.hold_lease_s = hold_lease_s
+        self.planner: JourneyPlanner | None = None
+        """Plans a journey against the other trains' on its line before it is sent."""
         # Unique across restarts of the service, so a vehicle never sees an id twice.
         self._ids = itertools.count(time.time_ns() // 1000)
 
@@ -123,11 +144,13 @@ class CommandService:
 
     def send_journey_profile(
         self, user: User, vehicle_id: str, journey_id: str, version: int | None, timeout_s: float
-    ) -> m.JourneyProfileAck:
+    ) -> JourneySent:
         """Send a stored journey as the vehicle's journey profile; its JPAck (accepted or
-        rejected). Raises as :meth:`send`, and :class:`ConflictError` when no session is open
-        or the journey is no longer valid on its line, :class:`NotFoundError` for an unknown
-        journey."""
+        rejected). With a :attr:`planner`, a journey whose plan conflicts with another train's
+        is first delayed and stored as the journey's next version, which is the one sent.
+        Raises as :meth:`send`, and :class:`ConflictError` when no session is open, the journey
+        is no longer valid on its line or its plan conflicts and cannot be cleared,
+        :class:`NotFoundError` for an unknown journey."""
         action = "journey_profile"
         request: dict[str, Any] = {
             "journey_id": journey_id,
@@ -139,13 +162,9 @@ class CommandService:
             self._check(user, vehicle_id)
             if not self._bridge.session_open(vehicle_id):
                 raise ConflictError(f"{vehicle_id} has no session open")
-            with self._factory() as db:
-                stored = get_journey(db, journey_id, version)
-                check, line_version = validate_journey(db, stored.journey)
-            if not check.valid:
-                raise ConflictError(
-                    f"journey {journey_id} no longer valid on line version {line_version}"
-                )
+            stored, check, line_version, planned = self._planned(
+                user, vehicle_id, journey_id, version
+            )
             profile = journey_profile_message(
                 stored.journey,
                 check,
@@ -165,9 +184,36 @@ class CommandService:
             self._audit(user, vehicle_id, action, request, audit.AuditResult.FAILED, repr(exc))
             raise
         request["version"] = stored.version
+        if planned is not None and planned.delay_s > 0.0:
+            request["delay_s"] = planned.delay_s
         if ack is None:
             self._audit(user, vehicle_id, action, request, audit.AuditResult.TIMEOUT, None)
             raise VehicleTimeoutError(f"{vehicle_id} did not acknowledge the journey profile")
         result = audit.AuditResult.ACCEPTED if ack.accepted else audit.AuditResult.REFUSED
         self._audit(user, vehicle_id, action, request, result, ack.reason)
-        return ack
+        if ack.accepted and self.planner is not None:
+            self.planner.book(vehicle_id, stored.journey, check)
+        delay = 0.0 if planned is None else planned.delay_s
+        return JourneySent(ack, delay, None if planned is None else planned.conflict)
+
+    def _planned(
+        self, user: User, vehicle_id: str, journey_id: str, version: int | None
+    ) -> tuple[StoredJourney, JourneyCheck, str, PlannedJourney | None]:
+        """The stored journey to send, checked on its line, and the planner's answer: a journey
+        the planner delayed is stored as its next version first."""
+        with self._factory() as db, db.begin():
+            stored = get_journey(db, journey_id, version)
+            check, line_version = validate_journey(db, stored.journey)
+            if not check.valid:
+                raise ConflictError(
+                    f"journey {journey_id} no longer valid on line version {line_version}"
+                )
+            if self.planner is None:
+                return stored, check, line_version, None
+            planned = self.planner.plan(vehicle_id, stored.journey, check)
+            if planned.delay_s > 0.0:
+                stored = create_journey(
+                    db, planned.journey, created_by=f"{user.username} (planner)"
+                )
+                check, line_version = validate_journey(db, stored.journey)
+        return stored, check, line_version, planned

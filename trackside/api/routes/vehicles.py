@@ -215,11 +215,13 @@ def send_journey_profile(
 ) -> JourneyProfileAckPublic:
     """Send a stored journey to a vehicle as its journey profile, and answer with the vehicle's
     acknowledgement or rejection; 504 when the vehicle does not answer in time, 409 when the
-    caller does not hold it or it has no open session, 404 for an unknown journey."""
-    ack = commands.send_journey_profile(
+    caller does not hold it or it has no open session, or when its plan conflicts with another
+    train's and the planner cannot clear it, 404 for an unknown journey. A journey the planner
+    delayed is stored as its next version, the one sent and answered."""
+    sent = commands.send_journey_profile(
         user, vehicle_id, body.journey_id, body.version, body.timeout_s
     )
-    return JourneyProfileAckPublic.from_ack(ack)
+    return JourneyProfileAckPublic.from_sent(sent)
 
 
 # -- history -----------------------------------------------------------------------------------

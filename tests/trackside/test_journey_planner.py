@@ -1,0 +1,168 @@
+"""The trackside's journey planner: journeys planned against the booked journeys of the other
+trains on their line, each placed by its own train's clock."""
+
+from __future__ import annotations
+
+import pytest
+
+from protocol.units import MPS_PER_KMH
+from tests.trackside.reports import status_report
+from trackdb import TrackMap, load_seed_line
+from trackdb.headway import HeadwayRule, PlanningMode
+from trackdb.journey import Journey, JourneyTimingPoint, check_journey
+from trackside.bridge import VehicleSnapshot
+from trackside.journey_planner import JourneyConflictError, JourneyPlanner
+
+LINE = "bologna-ring"
+
+
+@pytest.fixture(scope="module")
+def ring() -> TrackMap:
+    return TrackMap(load_seed_line(LINE))
+
+
+def _journey(
+    journey_id: str, start_m: float, stops: list[tuple[str, float, float | None]]
+) -> Journey:
+    return Journey(
+        id=journey_id,
+        line_id=LINE,
+        start_position_m=start_m,
+        max_speed_mps=40.0 * MPS_PER_KMH,
+        timing_points=tuple(
+            JourneyTimingPoint(
+                id=platform,
+                stopping_point_id=platform,
+                arrival_time_s=arrival,
+                departure_time_s=departure,
+                end_of_journey=departure is None,
+            )
+            for platform, arrival, departure in stops
+        ),
+    )
+
+
+class Fleet:
+    """The trains' latest reports, as the bridge's snapshots give them."""
+
+    def __init__(self) -> None:
+        self.reports: dict[str, tuple[float, float, str | None]] = {}
+
+    def report(
+        self, vehicle_id: str, position_m: float, sim_time_s: float, journey: str | None
+    ) -> None:
+        self.reports[vehicle_id] = (position_m, sim_time_s, journey)
+
+    def snapshots(self) -> list[VehicleSnapshot]:
+        snapshots = []
+        for vehicle_id, (position_m, sim_time_s, journey) in self.reports.items():
+            status = status_report(vehicle_id, position_m, line_id=LINE).model_copy(
+                update={"sim_time_s": sim_time_s, "journey_id": journey}
+            )
+            snapshots.append(VehicleSnapshot(vehicle_id, True, status, 0.1, True))
+        return snapshots
+
+
+def _planner(
+    fleet: Fleet, ring: TrackMap, mode: PlanningMode = PlanningMode.ADJUST
+) -> JourneyPlanner:
+    return JourneyPlanner(
+        HeadwayRule(margin_m=50.0),
+        mode=mode,
+        fleet=fleet.snapshots,
+        lengths=lambda _vehicle: 6.0,
+        ring_length_m=lambda line: ring.length_m if line == LINE else None,
+        max_delay_s=600.0,
+    )
+
+
+# two-trains-planned's: the lead goes round to the north platform, the train behind 600 m
+# back is timed to reach the east platform 5 s after the lead has left it.
+LEAD = _journey(
+    "lead", 900.0, [("east", 150.0, 180.0), ("south", 330.0, 350.0), ("north", 640.0, None)]
+)
+BEHIND = _journey("behind", 300.0, [("east", 185.0, 215.0), ("south", 400.0, None)])
+
+
+def test_a_journey_alone_on_its_line_goes_as_stored(ring: TrackMap) -> None:
+    fleet = Fleet()
+    fleet.report("URV1", 900.0, 40.0, None)
+    fleet.report("URV2", 300.0, 40.0, None)
+    planned = _planner(fleet, ring).plan("URV1", LEAD, check_journey(LEAD, ring))
+    assert planned.delay_s == 0.0
+    assert planned.conflict is None
+    assert planned.journey == LEAD
+
+
+def test_a_journey_timed_into_a_booked_one_is_delayed_until_it_clears(ring: TrackMap) -> None:
+    fleet = Fleet()
+    fleet.report("URV1", 900.0, 40.0, None)
+    fleet.report("URV2", 300.0, 40.0, None)
+    planner = _planner(fleet, ring)
+    planner.book("URV1", LEAD, check_journey(LEAD, ring))
+    fleet.report("URV1", 900.0, 41.0, "lead")  # accepted at 40 s on its clock
+    planned = planner.plan("URV2", BEHIND, check_journey(BEHIND, ring))
+    assert planned.delay_s > 0.0
+    assert planned.delay_s % planner.step_s == 0.0
+    assert planned.conflict is not None
+    assert (planned.conflict.behind, planned.conflict.ahead) == ("URV2", "URV1")
+    east = planned.journey.timing_points[0]
+    assert east.arrival_time_s == BEHIND.timing_points[0].arrival_time_s + planned.delay_s
+
+
+def test_the_other_train_is_placed_by_its_own_clock(ring: TrackMap) -> None:
+    """Its clock reads 1000 s more than this train's: only the time since it accepted counts.
+    Once the lead has run its journey 250 s, the same journey behind it clears."""
+    fleet = Fleet()
+    fleet.report("URV1", 900.0, 1040.0, None)
+    fleet.report("URV2", 300.0, 40.0, None)
+    planner = _planner(fleet, ring)
+    planner.book("URV1", LEAD, check_journey(LEAD, ring))
+    fleet.report("URV1", 900.0, 1041.0, "lead")
+    delayed = planner.plan("URV2", BEHIND, check_journey(BEHIND, ring)).delay_s
+    assert delayed > 0.0
+    fleet.report("URV1", 3000.0, 1290.0, "lead")
+    assert planner.plan("URV2", BEHIND, check_journey(BEHIND, ring)).delay_s < delayed
+
+
+def test_a_train_no_longer_on_its_booked_journey_is_not_planned_against(ring: TrackMap) -> None:
+    fleet = Fleet()
+    fleet.report("URV1", 900.0, 40.0, None)
+    fleet.report("URV2", 300.0, 40.0, None)
+    planner = _planner(fleet, ring)
+    planner.book("URV1", LEAD, check_journey(LEAD, ring))
+    fleet.report("URV1", 900.0, 50.0, "another")
+    assert planner.plan("URV2", BEHIND, check_journey(BEHIND, ring)).delay_s == 0.0
+
+
+def test_check_mode_refuses_a_conflicting_journey_and_names_the_conflict(ring: TrackMap) -> None:
+    fleet = Fleet()
+    fleet.report("URV1", 900.0, 40.0, None)
+    fleet.report("URV2", 300.0, 40.0, None)
+    planner = _planner(fleet, ring, PlanningMode.CHECK)
+    planner.book("URV1", LEAD, check_journey(LEAD, ring))
+    fleet.report("URV1", 900.0, 41.0, "lead")
+    with pytest.raises(JourneyConflictError, match="URV2 would run .* behind URV1"):
+        planner.plan("URV2", BEHIND, check_journey(BEHIND, ring))
+
+
+def test_no_delay_within_the_longest_clears_a_journey_and_it_is_refused(ring: TrackMap) -> None:
+    fleet = Fleet()
+    fleet.report("URV1", 900.0, 40.0, None)
+    fleet.report("URV2", 300.0, 40.0, None)
+    planner = _planner(fleet, ring)
+    planner.max_delay_s = 10.0
+    planner.book("URV1", LEAD, check_journey(LEAD, ring))
+    fleet.report("URV1", 900.0, 41.0, "lead")
+    with pytest.raises(JourneyConflictError, match="even 10 s later"):
+        planner.plan("URV2", BEHIND, check_journey(BEHIND, ring))
+
+
+def test_off_mode_sends_every_journey_as_stored(ring: TrackMap) -> None:
+    fleet = Fleet()
+    fleet.report("URV1", 900.0, 40.0, None)
+    fleet.report("URV2", 300.0, 40.0, None)
+    planner = _planner(fleet, ring, PlanningMode.OFF)
+    planner.book("URV1", LEAD, check_journey(LEAD, ring))
+    fleet.report("URV1", 900.0, 41.0, "lead")
+    assert planner.plan("URV2", BEHIND, check_journey(BEHIND, ring)).journey == BEHIND
