@@ -256,14 +256,14 @@ def test_the_trackside_delays_a_journey_timed_into_the_train_ahead(tmp_path: Pat
     short.write_text(re.sub(r"(?m)^duration_s = .*$", "duration_s = 300.0", text, count=1))
     outcome = run_scenario(load_scenario(str(short)), RunOptions(fast=True))
     lead, behind = outcome.kpis, outcome.trains["URV2"].kpis
-    (sent,) = [action for action in behind.actions if action.action == "send_journey"]
+    (sent,) = [action for action in behind.actions or () if action.action == "send_journey"]
     assert sent.accepted
     assert sent.detail is not None
     found = re.match(r"planned (\d+) s later: URV2 would run .* behind URV1", sent.detail)
     assert found is not None, sent.detail
     delay_s = float(found.group(1))
     assert 0.0 < delay_s <= 600.0
-    (lead_sent,) = [action for action in lead.actions if action.action == "send_journey"]
+    (lead_sent,) = [action for action in lead.actions or () if action.action == "send_journey"]
     assert lead_sent.detail is None  # the first journey on the line goes as stored
     (east,) = behind.stops
     assert east.planned_arrival_s == pytest.approx(185.0 + delay_s)
