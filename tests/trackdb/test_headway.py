@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol.units import MPS_PER_KMH
+from tests.trackdb.ring_journeys import ring_journey
 from trackdb import LineBuilder, TrackMap, load_seed_line
 from trackdb.headway import (
     Conflict,
@@ -29,28 +29,6 @@ def ring() -> TrackMap:
     return TrackMap(load_seed_line("bologna-ring"))
 
 
-def _journey(
-    journey_id: str, start_m: float, points: list[tuple[str, float, float | None]]
-) -> Journey:
-    """Stops at the ring's platforms: (platform, arrival, departure or None for the last)."""
-    return Journey(
-        id=journey_id,
-        line_id="bologna-ring",
-        start_position_m=start_m,
-        max_speed_mps=40.0 * MPS_PER_KMH,
-        timing_points=tuple(
-            JourneyTimingPoint(
-                id=platform,
-                stopping_point_id=platform,
-                arrival_time_s=arrival,
-                departure_time_s=departure,
-                end_of_journey=departure is None,
-            )
-            for platform, arrival, departure in points
-        ),
-    )
-
-
 def _placed(
     ring: TrackMap, vehicle_id: str, journey: Journey, *, started_s: float = 0.0
 ) -> PlacedRun:
@@ -62,10 +40,10 @@ def _placed(
 
 # Two URVs past the north platform, 250 m apart, both timed to the east one: the one behind
 # arrives while the lead still stands there (the library's two-trains-following).
-LEAD = _journey(
+LEAD = ring_journey(
     "lead", 900.0, [("east", 150.0, 180.0), ("south", 330.0, 350.0), ("north", 640.0, None)]
 )
-FOLLOWER = _journey("follower", 650.0, [("east", 165.0, 200.0), ("south", 380.0, None)])
+FOLLOWER = ring_journey("follower", 650.0, [("east", 165.0, 200.0), ("south", 380.0, None)])
 
 
 def test_a_nominal_run_arrives_on_time_and_stands_through_its_dwell() -> None:
@@ -142,7 +120,7 @@ def test_on_a_ring_the_gap_is_taken_round_the_lap(ring: TrackMap) -> None:
     # A train standing 100 m past the start of the lap is ahead of one running over the lap's
     # end towards the north platform.
     standing = PlacedRun("URV9", 100.0, URV_LENGTH_M)
-    over_the_end = _journey("over", 5000.0, [("north", 200.0, None)])
+    over_the_end = ring_journey("over", 5000.0, [("north", 200.0, None)])
     clear = first_conflict(
         _placed(ring, "URV1", over_the_end), [standing], RULE, ring_length_m=ring.length_m
     )

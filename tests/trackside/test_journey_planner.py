@@ -5,41 +5,20 @@ from __future__ import annotations
 
 import pytest
 
-from protocol.units import MPS_PER_KMH
+from tests.trackdb.ring_journeys import RING, ring_journey
 from tests.trackside.reports import status_report
 from trackdb import TrackMap, load_seed_line
 from trackdb.headway import HeadwayRule, PlanningMode
-from trackdb.journey import Journey, JourneyTimingPoint, check_journey
+from trackdb.journey import check_journey
 from trackside.bridge import VehicleSnapshot
 from trackside.journey_planner import JourneyConflictError, JourneyPlanner
 
-LINE = "bologna-ring"
+LINE = RING
 
 
 @pytest.fixture(scope="module")
 def ring() -> TrackMap:
     return TrackMap(load_seed_line(LINE))
-
-
-def _journey(
-    journey_id: str, start_m: float, stops: list[tuple[str, float, float | None]]
-) -> Journey:
-    return Journey(
-        id=journey_id,
-        line_id=LINE,
-        start_position_m=start_m,
-        max_speed_mps=40.0 * MPS_PER_KMH,
-        timing_points=tuple(
-            JourneyTimingPoint(
-                id=platform,
-                stopping_point_id=platform,
-                arrival_time_s=arrival,
-                departure_time_s=departure,
-                end_of_journey=departure is None,
-            )
-            for platform, arrival, departure in stops
-        ),
-    )
 
 
 class Fleet:
@@ -78,10 +57,23 @@ def _planner(
 
 # two-trains-planned's: the lead goes round to the north platform, the train behind 600 m
 # back is timed to reach the east platform 5 s after the lead has left it.
-LEAD = _journey(
+LEAD = ring_journey(
     "lead", 900.0, [("east", 150.0, 180.0), ("south", 330.0, 350.0), ("north", 640.0, None)]
 )
-BEHIND = _journey("behind", 300.0, [("east", 185.0, 215.0), ("south", 400.0, None)])
+BEHIND = ring_journey("behind", 300.0, [("east", 185.0, 215.0), ("south", 400.0, None)])
+
+
+def _lead_booked(
+    ring: TrackMap, mode: PlanningMode = PlanningMode.ADJUST, *, lead_clock_s: float = 40.0
+) -> tuple[Fleet, JourneyPlanner]:
+    """URV1 accepted LEAD at ``lead_clock_s`` on its clock, URV2 stands 600 m behind it."""
+    fleet = Fleet()
+    fleet.report("URV1", 900.0, lead_clock_s, None)
+    fleet.report("URV2", 300.0, 40.0, None)
+    planner = _planner(fleet, ring, mode)
+    planner.book("URV1", LEAD, check_journey(LEAD, ring))
+    fleet.report("URV1", 900.0, lead_clock_s + 1.0, "lead")
+    return fleet, planner
 
 
 def test_a_journey_alone_on_its_line_goes_as_stored(ring: TrackMap) -> None:
@@ -95,12 +87,7 @@ def test_a_journey_alone_on_its_line_goes_as_stored(ring: TrackMap) -> None:
 
 
 def test_a_journey_timed_into_a_booked_one_is_delayed_until_it_clears(ring: TrackMap) -> None:
-    fleet = Fleet()
-    fleet.report("URV1", 900.0, 40.0, None)
-    fleet.report("URV2", 300.0, 40.0, None)
-    planner = _planner(fleet, ring)
-    planner.book("URV1", LEAD, check_journey(LEAD, ring))
-    fleet.report("URV1", 900.0, 41.0, "lead")  # accepted at 40 s on its clock
+    _fleet, planner = _lead_booked(ring)
     planned = planner.plan("URV2", BEHIND, check_journey(BEHIND, ring))
     assert planned.delay_s > 0.0
     assert planned.delay_s % planner.step_s == 0.0
@@ -113,12 +100,7 @@ def test_a_journey_timed_into_a_booked_one_is_delayed_until_it_clears(ring: Trac
 def test_the_other_train_is_placed_by_its_own_clock(ring: TrackMap) -> None:
     """Its clock reads 1000 s more than this train's: only the time since it accepted counts.
     Once the lead has run its journey 250 s, the same journey behind it clears."""
-    fleet = Fleet()
-    fleet.report("URV1", 900.0, 1040.0, None)
-    fleet.report("URV2", 300.0, 40.0, None)
-    planner = _planner(fleet, ring)
-    planner.book("URV1", LEAD, check_journey(LEAD, ring))
-    fleet.report("URV1", 900.0, 1041.0, "lead")
+    fleet, planner = _lead_booked(ring, lead_clock_s=1040.0)
     delayed = planner.plan("URV2", BEHIND, check_journey(BEHIND, ring)).delay_s
     assert delayed > 0.0
     fleet.report("URV1", 3000.0, 1290.0, "lead")
@@ -126,43 +108,24 @@ def test_the_other_train_is_placed_by_its_own_clock(ring: TrackMap) -> None:
 
 
 def test_a_train_no_longer_on_its_booked_journey_is_not_planned_against(ring: TrackMap) -> None:
-    fleet = Fleet()
-    fleet.report("URV1", 900.0, 40.0, None)
-    fleet.report("URV2", 300.0, 40.0, None)
-    planner = _planner(fleet, ring)
-    planner.book("URV1", LEAD, check_journey(LEAD, ring))
+    fleet, planner = _lead_booked(ring)
     fleet.report("URV1", 900.0, 50.0, "another")
     assert planner.plan("URV2", BEHIND, check_journey(BEHIND, ring)).delay_s == 0.0
 
 
 def test_check_mode_refuses_a_conflicting_journey_and_names_the_conflict(ring: TrackMap) -> None:
-    fleet = Fleet()
-    fleet.report("URV1", 900.0, 40.0, None)
-    fleet.report("URV2", 300.0, 40.0, None)
-    planner = _planner(fleet, ring, PlanningMode.CHECK)
-    planner.book("URV1", LEAD, check_journey(LEAD, ring))
-    fleet.report("URV1", 900.0, 41.0, "lead")
+    _fleet, planner = _lead_booked(ring, PlanningMode.CHECK)
     with pytest.raises(JourneyConflictError, match="URV2 would run .* behind URV1"):
         planner.plan("URV2", BEHIND, check_journey(BEHIND, ring))
 
 
 def test_no_delay_within_the_longest_clears_a_journey_and_it_is_refused(ring: TrackMap) -> None:
-    fleet = Fleet()
-    fleet.report("URV1", 900.0, 40.0, None)
-    fleet.report("URV2", 300.0, 40.0, None)
-    planner = _planner(fleet, ring)
+    _fleet, planner = _lead_booked(ring)
     planner.max_delay_s = 10.0
-    planner.book("URV1", LEAD, check_journey(LEAD, ring))
-    fleet.report("URV1", 900.0, 41.0, "lead")
     with pytest.raises(JourneyConflictError, match="even 10 s later"):
         planner.plan("URV2", BEHIND, check_journey(BEHIND, ring))
 
 
 def test_off_mode_sends_every_journey_as_stored(ring: TrackMap) -> None:
-    fleet = Fleet()
-    fleet.report("URV1", 900.0, 40.0, None)
-    fleet.report("URV2", 300.0, 40.0, None)
-    planner = _planner(fleet, ring, PlanningMode.OFF)
-    planner.book("URV1", LEAD, check_journey(LEAD, ring))
-    fleet.report("URV1", 900.0, 41.0, "lead")
+    _fleet, planner = _lead_booked(ring, PlanningMode.OFF)
     assert planner.plan("URV2", BEHIND, check_journey(BEHIND, ring)).journey == BEHIND
