@@ -48,6 +48,7 @@ __all__ = [
     "JourneyConflictError",
     "JourneyPlanner",
     "PlannedJourney",
+    "PlannerStats",
     "PlanningMode",
 ]
 
@@ -66,6 +67,17 @@ class PlannedJourney:
     delay_s: float
     conflict: Conflict | None
     """The conflict the undelayed journey had, ``None`` if none."""
+
+
+@dataclass(slots=True)
+class PlannerStats:
+    """What the planner did with the journeys it was given, since the service started."""
+
+    as_stored: int = 0
+    delayed: int = 0
+    refused: int = 0
+    delay_s: float = 0.0
+    """The delays given, summed [s]."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -102,6 +114,13 @@ class JourneyPlanner:
         self._ring_length_m = ring_length_m
         self._booked: dict[str, _Booked] = {}
         self._lock = threading.Lock()
+        self._stats = PlannerStats()
+
+    @property
+    def stats(self) -> PlannerStats:
+        """A copy of the counts (``/metrics``)."""
+        with self._lock:
+            return PlannerStats(**{f: getattr(self._stats, f) for f in PlannerStats.__slots__})
 
     def plan(self, vehicle_id: str, journey: Journey, check: JourneyCheck) -> PlannedJourney:
         """The journey as it may be sent to ``vehicle_id``, delayed if need be.
@@ -111,6 +130,21 @@ class JourneyPlanner:
         JourneyConflictError
             The journey conflicts (``check`` mode), or no delay up to ``max_delay_s`` clears it.
         """
+        try:
+            planned = self._plan(vehicle_id, journey, check)
+        except JourneyConflictError:
+            with self._lock:
+                self._stats.refused += 1
+            raise
+        with self._lock:
+            if planned.delay_s > 0.0:
+                self._stats.delayed += 1
+                self._stats.delay_s += planned.delay_s
+            else:
+                self._stats.as_stored += 1
+        return planned
+
+    def _plan(self, vehicle_id: str, journey: Journey, check: JourneyCheck) -> PlannedJourney:
         if self.mode is PlanningMode.OFF:
             return PlannedJourney(journey, 0.0, None)
         others = self._others(vehicle_id, journey.line_id)

@@ -26,7 +26,13 @@ from prometheus_client.exposition import CONTENT_TYPE_LATEST, generate_latest
 from prometheus_client.registry import Collector
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
-__all__ = ["LOOPBACK_HOSTS", "RestLatencyMiddleware", "add_metrics", "route_template"]
+__all__ = [
+    "LOOPBACK_HOSTS",
+    "RestLatencyMiddleware",
+    "add_metrics",
+    "planner_metrics",
+    "route_template",
+]
 
 LOOPBACK_HOSTS = frozenset({"127.0.0.1", "::1", "localhost"})
 """Clients allowed to scrape when no token is set."""
@@ -92,6 +98,9 @@ class _ServiceCollector(Collector):
         recorder = getattr(self._state, "recorder", None)
         if recorder is not None:
             yield from _recorder_metrics(recorder.stats)
+        planner = getattr(getattr(self._state, "commands", None), "planner", None)
+        if planner is not None:
+            yield from planner_metrics(planner.stats)
 
 
 def _fleet_metrics(bridge: Any) -> Iterator[Metric]:
@@ -187,6 +196,24 @@ def _recorder_metrics(stats: Any) -> Iterator[Metric]:
     yield written
     yield CounterMetricFamily(
         "ato_ts_recorder_failed_batches", "Batches the database refused", value=stats.failed_batches
+    )
+
+
+def planner_metrics(stats: Any) -> Iterator[Metric]:
+    """The journey planner's outcomes (``trackside.journey_planner.PlannerStats``)."""
+    planned = CounterMetricFamily(
+        "ato_ts_journeys_planned",
+        "Journeys planned against the other trains', by outcome",
+        labels=["outcome"],
+    )
+    planned.add_metric(["as_stored"], stats.as_stored)
+    planned.add_metric(["delayed"], stats.delayed)
+    planned.add_metric(["refused"], stats.refused)
+    yield planned
+    yield CounterMetricFamily(
+        "ato_ts_journey_delay_seconds",
+        "Delays the planner gave journeys, summed",
+        value=stats.delay_s,
     )
 
 

@@ -12,6 +12,7 @@ from trackdb.headway import HeadwayRule, PlanningMode
 from trackdb.journey import check_journey
 from trackside.bridge import VehicleSnapshot
 from trackside.journey_planner import JourneyConflictError, JourneyPlanner
+from trackside.metrics import planner_metrics
 
 LINE = RING
 
@@ -129,3 +130,23 @@ def test_no_delay_within_the_longest_clears_a_journey_and_it_is_refused(ring: Tr
 def test_off_mode_sends_every_journey_as_stored(ring: TrackMap) -> None:
     _fleet, planner = _lead_booked(ring, PlanningMode.OFF)
     assert planner.plan("URV2", BEHIND, check_journey(BEHIND, ring)).journey == BEHIND
+
+
+def test_the_outcomes_are_counted_for_the_metrics(ring: TrackMap) -> None:
+    _fleet, planner = _lead_booked(ring)
+    delayed = planner.plan("URV2", BEHIND, check_journey(BEHIND, ring)).delay_s
+    planner.plan("URV1", LEAD, check_journey(LEAD, ring))
+    planner.max_delay_s = 10.0
+    with pytest.raises(JourneyConflictError):
+        planner.plan("URV2", BEHIND, check_journey(BEHIND, ring))
+    stats = planner.stats
+    assert (stats.as_stored, stats.delayed, stats.refused) == (1, 1, 1)
+    assert stats.delay_s == delayed
+    samples = {
+        (sample.name, sample.labels.get("outcome")): sample.value
+        for family in planner_metrics(stats)
+        for sample in family.samples
+    }
+    assert samples[("ato_ts_journeys_planned_total", "delayed")] == 1.0
+    assert samples[("ato_ts_journeys_planned_total", "refused")] == 1.0
+    assert samples[("ato_ts_journey_delay_seconds_total", None)] == delayed
