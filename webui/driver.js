@@ -372,6 +372,8 @@ export class DriverView {
       return;
     }
     node.dataset.accepted = String(answer.data.accepted);
-    node.textContent = `journey ${answer.data.journey_id} v${answer.data.version}: ${answer.data.accepted ? "acknowledged" : "rejected"}${answer.data.reason ? ` (${answer.data.reason})` : ""}`;
+    // The trackside's planner may have timed it later, to keep clear of the trains ahead.
+    const delayed = answer.data.delay_s > 0 ? `, planned ${answer.data.delay_s} s later: ${answer.data.conflict}` : "";
+    node.textContent = `journey ${answer.data.journey_id} v${answer.data.version}: ${answer.data.accepted ? "acknowledged" : "rejected"}${answer.data.reason ? ` (${answer.data.reason})` : ""}${delayed}`;
   }
 }
