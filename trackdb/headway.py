@@ -285,7 +285,12 @@ def _pair_conflict(
     ahead_front, _ = ahead.front_m(t)
     gap = ahead_front - ahead.length_m - front
     if ring_length_m is not None:
-        gap = np.mod(gap, ring_length_m)
+        # The lap between them is read once, at the start, where they stand: the gap then
+        # runs on unwrapped, and one that the train behind would close falls below 0 rather
+        # than wrapping to a lap.
+        now_behind, _ = behind.front_m(t[:1])
+        now_gap = float(ahead_front[0] - ahead.length_m - now_behind[0])
+        gap = gap + (now_gap % ring_length_m - now_gap)
     reach_speed = (
         speed if behind.top_speed_mps is None else np.full_like(speed, behind.top_speed_mps)
     )

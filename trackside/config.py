@@ -81,7 +81,7 @@ class Settings(BaseSettings):
     journey_planning_max_delay_s: float = Field(
         default=600.0,
         ge=0.0,
-        le=86_400.0,
+        le=3600.0,
         description="The longest delay the planner gives a journey; one that needs more is "
         "refused [s]",
     )

@@ -115,6 +115,10 @@ class JourneyPlanner:
         self._booked: dict[str, _Booked] = {}
         self._lock = threading.Lock()
         self._stats = PlannerStats()
+        self._line_top_mps: dict[str, float] = {}
+        self.sending = threading.RLock()
+        """Held by a sender from the planning to the booking, so that two journeys are not
+        planned at once, each blind to the other (``trackside.services.commands``)."""
 
     @property
     def stats(self) -> PlannerStats:
@@ -122,14 +126,24 @@ class JourneyPlanner:
         with self._lock:
             return PlannerStats(**{f: getattr(self._stats, f) for f in PlannerStats.__slots__})
 
-    def plan(self, vehicle_id: str, journey: Journey, check: JourneyCheck) -> PlannedJourney:
-        """The journey as it may be sent to ``vehicle_id``, delayed if need be.
+    def plan(
+        self,
+        vehicle_id: str,
+        journey: Journey,
+        check: JourneyCheck,
+        line_top_speed_mps: float | None = None,
+    ) -> PlannedJourney:
+        """The journey as it may be sent to ``vehicle_id``, delayed if need be;
+        ``line_top_speed_mps`` the line's highest speed limit, for a journey without a cap.
 
         Raises
         ------
         JourneyConflictError
             The journey conflicts (``check`` mode), or no delay up to ``max_delay_s`` clears it.
         """
+        if line_top_speed_mps is not None:
+            with self._lock:
+                self._line_top_mps[journey.line_id] = line_top_speed_mps
         try:
             planned = self._plan(vehicle_id, journey, check)
         except JourneyConflictError:
@@ -155,7 +169,11 @@ class JourneyPlanner:
             delayed = delayed_journey(journey, delay_s)
             run = nominal_run(planned_stops(delayed, check.distances_m))
             return PlacedRun(
-                vehicle_id, journey.start_position_m, length, run, top_speed_mps=_top(journey, run)
+                vehicle_id,
+                journey.start_position_m,
+                length,
+                run,
+                top_speed_mps=self._top(journey, run),
             )
 
         if self.mode is PlanningMode.CHECK:
@@ -189,10 +207,23 @@ class JourneyPlanner:
             start_m=journey.start_position_m,
             run=run,
             accepted_sim_s=status.sim_time_s,
-            top_speed_mps=_top(journey, run),
+            top_speed_mps=self._top(journey, run),
         )
         with self._lock:
             self._booked[vehicle_id] = booked
+
+    def forget(self, vehicle_id: str) -> None:
+        """Drop the vehicle's booking: a new journey is on its way to it."""
+        with self._lock:
+            self._booked.pop(vehicle_id, None)
+
+    def _top(self, journey: Journey, run: NominalRun) -> float:
+        """The journey's cap, else its line's highest limit, else its nominal run's top [m/s]."""
+        if journey.max_speed_mps is not None:
+            return journey.max_speed_mps
+        with self._lock:
+            line_top = self._line_top_mps.get(journey.line_id)
+        return float(run.speed_mps.max(initial=0.0)) if line_top is None else line_top
 
     def _status(self, vehicle_id: str) -> m.StatusReport | None:
         for snapshot in self._fleet():
@@ -228,10 +259,3 @@ class JourneyPlanner:
                 )
             )
         return others
-
-
-def _top(journey: Journey, run: NominalRun) -> float:
-    """The journey's cap, else the fastest its nominal run goes [m/s]."""
-    if journey.max_speed_mps is not None:
-        return journey.max_speed_mps
-    return float(run.speed_mps.max(initial=0.0))

@@ -176,3 +176,18 @@ def test_a_delayed_journey_keeps_its_running_times() -> None:
     assert [p.arrival_time_s for p in delayed.timing_points] == [180.0, 360.0, 670.0]
     assert [p.departure_time_s for p in delayed.timing_points] == [210.0, 380.0, None]
     assert delayed.id == LEAD.id
+
+
+def test_on_a_ring_a_train_closing_past_the_one_ahead_within_the_buffer_conflicts(
+    ring: TrackMap,
+) -> None:
+    """150 m behind a standing train and timed to pass it within the buffer time: the gap
+    goes below 0 and is a conflict, not a lap."""
+    standing = PlacedRun("URV9", 1500.0, URV_LENGTH_M)
+    through = ring_journey("through", 1350.0, [("east", 80.0, None)])
+    conflict = first_conflict(
+        _placed(ring, "URV1", through), [standing], RULE, ring_length_m=ring.length_m
+    )
+    assert conflict is not None
+    assert conflict.ahead == "URV9"
+    assert conflict.gap_m < 0.0

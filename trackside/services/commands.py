@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import itertools
 import time
+from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Any
 
@@ -36,11 +37,15 @@ from trackside.services import audit, holds
 from trackside.services.journeys import (
     StoredJourney,
     create_journey,
+    delete_journey_version,
     get_journey,
+    line_top_speed_mps,
     validate_journey,
 )
 
 __all__ = ["CommandService", "JourneySent"]
+
+JOURNEY_ACTION = "journey_profile"
 
 
 @dataclass(frozen=True, slots=True)
@@ -147,24 +152,41 @@ class CommandService:
     ) -> JourneySent:
         """Send a stored journey as the vehicle's journey profile; its JPAck (accepted or
         rejected). With a :attr:`planner`, a journey whose plan conflicts with another train's
-        is first delayed and stored as the journey's next version, which is the one sent.
-        Raises as :meth:`send`, and :class:`ConflictError` when no session is open, the journey
-        is no longer valid on its line or its plan conflicts and cannot be cleared,
-        :class:`NotFoundError` for an unknown journey."""
-        action = "journey_profile"
+        is first delayed and stored as the journey's next version, which is the one sent (and
+        withdrawn from the store again when the vehicle rejects it or the link fails); sends
+        are then one at a time, from the planning to the booking. Raises as :meth:`send`, and
+        :class:`ConflictError` when no session is open, the journey is no longer valid on its
+        line or its plan conflicts and cannot be cleared, :class:`NotFoundError` for an unknown
+        journey."""
         request: dict[str, Any] = {
             "journey_id": journey_id,
             "version": version,
             "request_id": next(self._ids),
         }
-        self._audit(user, vehicle_id, action, request, audit.AuditResult.REQUESTED)
+        self._audit(user, vehicle_id, JOURNEY_ACTION, request, audit.AuditResult.REQUESTED)
+        planning = nullcontext() if self.planner is None else self.planner.sending
+        with planning:
+            return self._send_journey(user, vehicle_id, (journey_id, version), timeout_s, request)
+
+    def _send_journey(
+        self,
+        user: User,
+        vehicle_id: str,
+        journey: tuple[str, int | None],
+        timeout_s: float,
+        request: dict[str, Any],
+    ) -> JourneySent:
+        created = None  # the planner's delayed version, once stored
         try:
             self._check(user, vehicle_id)
             if not self._bridge.session_open(vehicle_id):
                 raise ConflictError(f"{vehicle_id} has no session open")
-            stored, check, line_version, planned = self._planned(
-                user, vehicle_id, journey_id, version
-            )
+            stored, check, line_version, planned = self._planned(user, vehicle_id, *journey)
+            request["version"] = stored.version
+            if planned is not None and planned.delay_s > 0.0:
+                request["delay_s"], created = planned.delay_s, stored
+            if self.planner is not None:
+                self.planner.forget(vehicle_id)  # booked again once it accepts
             profile = journey_profile_message(
                 stored.journey,
                 check,
@@ -175,26 +197,43 @@ class CommandService:
             )
             ack = self._bridge.send_journey_profile(profile, timeout_s=timeout_s)
         except TracksideError as exc:
-            self._audit(user, vehicle_id, action, request, audit.AuditResult.REFUSED, str(exc))
+            self._outcome(user, vehicle_id, request, audit.AuditResult.REFUSED, str(exc), created)
             raise
         except ProtocolError as exc:
-            self._audit(user, vehicle_id, action, request, audit.AuditResult.FAILED, str(exc))
+            self._outcome(user, vehicle_id, request, audit.AuditResult.FAILED, str(exc), created)
             raise VehicleLinkError(f"{vehicle_id}: {exc}") from exc
         except Exception as exc:  # the intent must not stay without its outcome
-            self._audit(user, vehicle_id, action, request, audit.AuditResult.FAILED, repr(exc))
+            self._outcome(user, vehicle_id, request, audit.AuditResult.FAILED, repr(exc), created)
             raise
-        request["version"] = stored.version
-        if planned is not None and planned.delay_s > 0.0:
-            request["delay_s"] = planned.delay_s
-        if ack is None:
-            self._audit(user, vehicle_id, action, request, audit.AuditResult.TIMEOUT, None)
+        if ack is None:  # kept: the vehicle may have taken it all the same
+            self._outcome(user, vehicle_id, request, audit.AuditResult.TIMEOUT, None, None)
             raise VehicleTimeoutError(f"{vehicle_id} did not acknowledge the journey profile")
-        result = audit.AuditResult.ACCEPTED if ack.accepted else audit.AuditResult.REFUSED
-        self._audit(user, vehicle_id, action, request, result, ack.reason)
-        if ack.accepted and self.planner is not None:
-            self.planner.book(vehicle_id, stored.journey, check)
-        delay = 0.0 if planned is None else planned.delay_s
-        return JourneySent(ack, delay, None if planned is None else planned.conflict)
+        if not ack.accepted:
+            self._outcome(user, vehicle_id, request, audit.AuditResult.REFUSED, ack.reason, created)
+        else:
+            self._outcome(user, vehicle_id, request, audit.AuditResult.ACCEPTED, ack.reason, None)
+            if self.planner is not None:
+                self.planner.book(vehicle_id, stored.journey, check)
+        if planned is None:
+            return JourneySent(ack)
+        return JourneySent(ack, planned.delay_s, planned.conflict)
+
+    def _outcome(
+        self,
+        user: User,
+        vehicle_id: str,
+        request: dict[str, Any],
+        result: audit.AuditResult,
+        detail: str | None,
+        withdraw: StoredJourney | None,
+    ) -> None:
+        """Audit a journey profile's outcome; withdraw the planner's delayed version that the
+        vehicle does not run."""
+        if withdraw is not None:
+            with self._factory() as db, db.begin():
+                delete_journey_version(db, withdraw.journey.id, withdraw.version)
+            request["withdrawn"] = True
+        self._audit(user, vehicle_id, JOURNEY_ACTION, request, result, detail)
 
     def _planned(
         self, user: User, vehicle_id: str, journey_id: str, version: int | None
@@ -210,7 +249,8 @@ class CommandService:
                 )
             if self.planner is None:
                 return stored, check, line_version, None
-            planned = self.planner.plan(vehicle_id, stored.journey, check)
+            top_speed = line_top_speed_mps(db, stored.journey.line_id)
+            planned = self.planner.plan(vehicle_id, stored.journey, check, top_speed)
             if planned.delay_s > 0.0:
                 stored = create_journey(
                     db, planned.journey, created_by=f"{user.username} (planner)"

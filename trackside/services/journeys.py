@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from datetime import UTC, datetime
 
-from sqlalchemy import func, select
+from sqlalchemy import delete, func, select
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import Session
 
@@ -18,7 +18,9 @@ from trackside.models import JourneyRow
 __all__ = [
     "StoredJourney",
     "create_journey",
+    "delete_journey_version",
     "get_journey",
+    "line_top_speed_mps",
     "list_journeys",
     "validate_journey",
 ]
@@ -66,6 +68,23 @@ def create_journey(db: Session, journey: Journey, *, created_by: str) -> StoredJ
     except IntegrityError as exc:
         raise ConflictError(f"journey {journey.id} changed meanwhile; try again") from exc
     return _stored(row)
+
+
+def delete_journey_version(db: Session, journey_id: str, version: int) -> None:
+    """Remove one version of a journey (the planner's, which the vehicle did not take)."""
+    db.execute(
+        delete(JourneyRow).where(JourneyRow.journey_id == journey_id, JourneyRow.version == version)
+    )
+
+
+def line_top_speed_mps(db: Session, line_id: str) -> float:
+    """The highest speed limit of the current version of a line [m/s]."""
+    try:
+        track_map = TrackMap(get_line(db, line_id))
+    except LineNotFoundError as exc:
+        raise NotFoundError(f"no line {line_id!r}") from exc
+    sections = track_map.mrsp_window(0.0, track_map.length_m)
+    return max(section.speed_mps for section in sections)
 
 
 def get_journey(db: Session, journey_id: str, version: int | None = None) -> StoredJourney:
