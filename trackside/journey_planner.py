@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from protocol import messages as m
 from trackdb.headway import (
@@ -124,7 +124,7 @@ class JourneyPlanner:
     def stats(self) -> PlannerStats:
         """A copy of the counts (``/metrics``)."""
         with self._lock:
-            return PlannerStats(**{f: getattr(self._stats, f) for f in PlannerStats.__slots__})
+            return replace(self._stats)
 
     def plan(
         self,
