@@ -45,6 +45,7 @@ from trackside.errors import ConflictError
 
 __all__ = [
     "DEFAULT_TRAIN_LENGTH_M",
+    "Booking",
     "JourneyConflictError",
     "JourneyPlanner",
     "PlannedJourney",
@@ -81,7 +82,9 @@ class PlannerStats:
 
 
 @dataclass(frozen=True, slots=True)
-class _Booked:
+class Booking:
+    """A journey a train accepted, as the planner places it."""
+
     journey_id: str
     line_id: str
     start_m: float
@@ -112,7 +115,7 @@ class JourneyPlanner:
         self._fleet = fleet
         self._lengths = lengths
         self._ring_length_m = ring_length_m
-        self._booked: dict[str, _Booked] = {}
+        self._booked: dict[str, Booking] = {}
         self._lock = threading.Lock()
         self._stats = PlannerStats()
         self._line_top_mps: dict[str, float] = {}
@@ -201,7 +204,7 @@ class JourneyPlanner:
         if status is None:
             return
         run = nominal_run(planned_stops(journey, check.distances_m))
-        booked = _Booked(
+        booked = Booking(
             journey_id=journey.id,
             line_id=journey.line_id,
             start_m=journey.start_position_m,
@@ -212,10 +215,19 @@ class JourneyPlanner:
         with self._lock:
             self._booked[vehicle_id] = booked
 
-    def forget(self, vehicle_id: str) -> None:
-        """Drop the vehicle's booking: a new journey is on its way to it."""
+    def forget(self, vehicle_id: str) -> Booking | None:
+        """Drop the vehicle's booking, a new journey being on its way to it; the booking
+        dropped, for :meth:`restore` should the vehicle keep its journey."""
         with self._lock:
-            self._booked.pop(vehicle_id, None)
+            return self._booked.pop(vehicle_id, None)
+
+    def restore(self, vehicle_id: str, booking: Booking | None) -> None:
+        """Book again what :meth:`forget` dropped: the vehicle rejected the new journey or
+        never had it, and runs the one it had (unless it has been booked anew since)."""
+        if booking is None:
+            return
+        with self._lock:
+            self._booked.setdefault(vehicle_id, booking)
 
     def _top(self, journey: Journey, run: NominalRun) -> float:
         """The journey's cap, else its line's highest limit, else its nominal run's top [m/s]."""

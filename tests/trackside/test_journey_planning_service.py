@@ -117,6 +117,13 @@ def test_a_journey_timed_into_a_booked_one_is_delayed_stored_and_withdrawn_if_re
 
     assert wait_for(lead_running)
 
+    # A new journey the lead's vehicle rejects: it runs the one it had, still planned against.
+    onboards.accept["URV1"] = False
+    kept = _send(client, headers, "URV1", "lead")
+    assert kept.status_code == 200, kept.text
+    assert kept.json()["accepted"] is False
+    onboards.accept["URV1"] = True
+
     # The one behind, rejected by its vehicle: delayed, sent as version 2, then withdrawn.
     onboards.accept["URV2"] = False
     rejected = _send(client, headers, "URV2", "behind")
@@ -148,4 +155,4 @@ def test_a_journey_timed_into_a_booked_one_is_delayed_stored_and_withdrawn_if_re
         ("accepted", answer["delay_s"], None),
     ]
     stats = client.app.state.commands.planner.stats  # type: ignore[attr-defined]
-    assert (stats.as_stored, stats.delayed, stats.refused) == (1, 2, 0)
+    assert (stats.as_stored, stats.delayed, stats.refused) == (2, 2, 0)

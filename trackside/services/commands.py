@@ -31,7 +31,7 @@ from trackside.errors import (
     VehicleLinkError,
     VehicleTimeoutError,
 )
-from trackside.journey_planner import JourneyPlanner, PlannedJourney
+from trackside.journey_planner import Booking, JourneyPlanner, PlannedJourney
 from trackside.models import User
 from trackside.services import audit, holds
 from trackside.services.journeys import (
@@ -177,6 +177,7 @@ class CommandService:
         request: dict[str, Any],
     ) -> JourneySent:
         created = None  # the planner's delayed version, once stored
+        previous = None  # the booking of the journey the vehicle ran before
         try:
             self._check(user, vehicle_id)
             if not self._bridge.session_open(vehicle_id):
@@ -186,7 +187,7 @@ class CommandService:
             if planned is not None and planned.delay_s > 0.0:
                 request["delay_s"], created = planned.delay_s, stored
             if self.planner is not None:
-                self.planner.forget(vehicle_id)  # booked again once it accepts
+                previous = self.planner.forget(vehicle_id)  # booked again once it accepts
             profile = journey_profile_message(
                 stored.journey,
                 check,
@@ -197,18 +198,22 @@ class CommandService:
             )
             ack = self._bridge.send_journey_profile(profile, timeout_s=timeout_s)
         except TracksideError as exc:
+            self._kept(vehicle_id, previous)
             self._outcome(user, vehicle_id, request, audit.AuditResult.REFUSED, str(exc), created)
             raise
         except ProtocolError as exc:
+            self._kept(vehicle_id, previous)
             self._outcome(user, vehicle_id, request, audit.AuditResult.FAILED, str(exc), created)
             raise VehicleLinkError(f"{vehicle_id}: {exc}") from exc
         except Exception as exc:  # the intent must not stay without its outcome
+            self._kept(vehicle_id, previous)
             self._outcome(user, vehicle_id, request, audit.AuditResult.FAILED, repr(exc), created)
             raise
         if ack is None:  # kept: the vehicle may have taken it all the same
             self._outcome(user, vehicle_id, request, audit.AuditResult.TIMEOUT, None, None)
             raise VehicleTimeoutError(f"{vehicle_id} did not acknowledge the journey profile")
         if not ack.accepted:
+            self._kept(vehicle_id, previous)
             self._outcome(user, vehicle_id, request, audit.AuditResult.REFUSED, ack.reason, created)
         else:
             self._outcome(user, vehicle_id, request, audit.AuditResult.ACCEPTED, ack.reason, None)
@@ -217,6 +222,12 @@ class CommandService:
         if planned is None:
             return JourneySent(ack)
         return JourneySent(ack, planned.delay_s, planned.conflict)
+
+    def _kept(self, vehicle_id: str, previous: Booking | None) -> None:
+        """The vehicle runs the journey it had: planned against again. After a timeout the
+        booking stays dropped, as the vehicle may run either journey."""
+        if self.planner is not None:
+            self.planner.restore(vehicle_id, previous)
 
     def _outcome(
         self,
