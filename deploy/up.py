@@ -42,6 +42,9 @@ TRACKSIDE_NAME = "ts1"
 """The trackside's instance id (``trackside.config.Settings.instance_id``'s default)."""
 HEALTH_TIMEOUT_S = 60.0
 STOP_GRACE_S = 5.0
+LOGIN_TIMEOUT_S = 30.0
+"""The longest wait for the admin's login [s] (a deliberately slow password hash, on a loaded
+machine)."""
 
 
 class UpError(ChildError):
@@ -125,6 +128,7 @@ class Fleet:
     """Each onboard's metrics endpoint, by vehicle."""
     parts: list[ChildProcess] = field(default_factory=list)
     _stop: threading.Event = field(default_factory=threading.Event)
+    _token: str | None = None
 
     @classmethod
     def plan_parts(cls, plan: UpPlan) -> Fleet:
@@ -273,25 +277,37 @@ class Fleet:
         if answer.status_code != httpx.codes.OK:
             raise UpError(f"line {line}: the trackside answered {answer.status_code}")
 
-    def token(self) -> str:
-        user, password = self.admin
-        answer = httpx.post(
-            f"{self.url}/api/v1/auth/token",
-            timeout=5.0,
-            data={"username": user, "password": password},
-        )
-        answer.raise_for_status()
-        return str(answer.json()["access_token"])
+    def token(self, *, fresh: bool = False) -> str:
+        """The admin's bearer token, logged in once and kept (``fresh``: log in again). A login
+        hashes the password on purpose slowly, which a trackside sharing two cores with tens of
+        onboards answered in more than 5 s: polling liveness with a login each time made it
+        worse, and the first request after the fleet came up timed out."""
+        if self._token is None or fresh:
+            user, password = self.admin
+            answer = httpx.post(
+                f"{self.url}/api/v1/auth/token",
+                timeout=LOGIN_TIMEOUT_S,
+                data={"username": user, "password": password},
+            )
+            answer.raise_for_status()
+            self._token = str(answer.json()["access_token"])
+        return self._token
 
     def alive(self) -> dict[str, bool]:
         """Each vehicle the trackside knows, and whether it is alive."""
-        answer = httpx.get(
-            f"{self.url}/api/v1/vehicles",
-            timeout=2.0,
-            headers={"Authorization": f"Bearer {self.token()}"},
-        )
+        answer = self._vehicles()
+        if answer.status_code == httpx.codes.UNAUTHORIZED:  # the kept token expired
+            self.token(fresh=True)
+            answer = self._vehicles()
         answer.raise_for_status()
         return {item["id"]: bool(item["alive"]) for item in answer.json()}
+
+    def _vehicles(self) -> httpx.Response:
+        return httpx.get(
+            f"{self.url}/api/v1/vehicles",
+            timeout=5.0,
+            headers={"Authorization": f"Bearer {self.token()}"},
+        )
 
     def _vehicles_alive(self) -> bool:
         try:

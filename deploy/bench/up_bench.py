@@ -318,7 +318,11 @@ def bench_up(
         result.up_s = time.monotonic() - started
         operator = None
         try:
-            operator = _Operator(fleet)
+            try:
+                operator = _Operator(fleet)
+            except httpx.HTTPError as exc:
+                result.failure = f"the operator could not log in: {exc!r}"
+                return result
             result.journeys = [Journey(v) for v in plan.vehicle_ids()[: result.driven]]
             with _Sampler(fleet, result, operator.alive):
                 _drive(operator, result.journeys, timeout_s)
