@@ -63,6 +63,8 @@ Reply = TypeVar("Reply")
 
 _PLACEHOLDER = re.compile(r"\{([a-z_]+)\}")
 _CHUNK = r"([A-Za-z0-9_-]+)"
+MAX_CACHED_KEYS = 65_536
+"""A topic keeps at most this many concrete keys made (then starts afresh)."""
 
 
 class Direction(StrEnum):
@@ -110,6 +112,10 @@ class Topic(Generic[T]):
     rate_hz: float | None = None
     _adapter: TypeAdapter[T] = field(init=False, repr=False, compare=False)
     _pattern: re.Pattern[str] = field(init=False, repr=False, compare=False)
+    _chunk_names: tuple[str, ...] = field(init=False, repr=False, compare=False)
+    _keys: dict[tuple[tuple[str, str], ...], str] = field(init=False, repr=False, compare=False)
+    """Concrete keys made so far (a trackside makes one per vehicle and topic, thousands of
+    times a second with a large fleet)."""
 
     def __post_init__(self) -> None:
         if (self.delivery is Delivery.QUERY) != isinstance(self, QueryTopic):
@@ -118,10 +124,12 @@ class Topic(Generic[T]):
         parts = _PLACEHOLDER.split(self.key_template)
         regex = "".join(_CHUNK if odd else re.escape(part) for odd, part in _alternate(parts))
         object.__setattr__(self, "_pattern", re.compile(f"^{regex}$"))
+        object.__setattr__(self, "_chunk_names", tuple(_PLACEHOLDER.findall(self.key_template)))
+        object.__setattr__(self, "_keys", {})
 
     @property
     def chunk_names(self) -> tuple[str, ...]:
-        return tuple(_PLACEHOLDER.findall(self.key_template))
+        return self._chunk_names
 
     @property
     def period_s(self) -> float | None:
@@ -129,6 +137,16 @@ class Topic(Generic[T]):
 
     def key(self, **chunks: str) -> str:
         """The concrete key for these chunk values; a missing or bad chunk raises."""
+        known = tuple(chunks.items())
+        key = self._keys.get(known)
+        if key is None:
+            key = self._make_key(chunks)
+            if len(self._keys) >= MAX_CACHED_KEYS:
+                self._keys.clear()
+            self._keys[known] = key
+        return key
+
+    def _make_key(self, chunks: dict[str, str]) -> str:
         if set(chunks) != set(self.chunk_names):
             raise KeyExpressionError(
                 f"{self.name}: expected chunks {self.chunk_names}, got {tuple(chunks)}"

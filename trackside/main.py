@@ -57,6 +57,7 @@ from trackside.separation_supervisor import SeparationSupervisor
 from trackside.services import audit, users
 from trackside.services import lines as lines_service
 from trackside.services.commands import CommandService
+from trackside.services.fleet_list import FleetListCache
 from trackside.simulated_operator import (
     SIMULATED_OPERATOR,
     OperatorAnswer,
@@ -234,6 +235,7 @@ def _start_bridge(
         line_document=lambda line_id: _line_document(factory, line_id),
     )
     app.state.bridge = bridge
+    app.state.fleet_list = FleetListCache()
     bridge.observe(status=recorder.offer_status, event=recorder.offer_event)
     bridge.observe(status=hub.publish_status, event=hub.publish_event)
     app.state.commands = CommandService(

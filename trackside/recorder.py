@@ -6,6 +6,11 @@ full, the item is dropped and counted); one background thread writes the queue t
 in batches. Telemetry is downsampled before it is queued: one status per vehicle per second of
 the vehicle's own simulated time.
 
+A row is queued as its columns' values and written with one bulk INSERT per table and batch,
+not as ORM objects, and the writer wakes at most every :data:`COLLECT_S`: with a thousand
+vehicles the objects' bookkeeping, the flush's unit of work and a thread woken on every row
+took a third of the service's interpreter (docs/trackside.md, "Benchmark").
+
 Audit entries never take that path: losing telemetry under load is acceptable, losing an audit
 entry is not. :class:`AuditWriter` keeps them in an unbounded queue of their own (appending never
 blocks and never drops) written by its own thread; a failed write (a database outage) is retried
@@ -16,12 +21,14 @@ any entry still unwritten when the service stops.
 from __future__ import annotations
 
 import logging
-import queue
 import threading
+import time
 from collections import deque
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
+from typing import Any, NamedTuple
 
+from sqlalchemy import insert
 from sqlalchemy.orm import Session, sessionmaker
 
 from protocol import messages as m
@@ -40,10 +47,19 @@ __all__ = [
 _log = logging.getLogger(__name__)
 
 BATCH = 256
-"""At most this many rows per transaction."""
+"""At most this many audit entries per transaction."""
+ROW_BATCH = 2048
+"""At most this many events and telemetry samples per transaction."""
+COLLECT_S = 0.05
+"""Once woken, the recorder's writer waits this long for more rows before writing [s]."""
 
-Record = VehicleEvent | TelemetrySample
-"""What goes through the bounded queue (audit entries go to :class:`AuditWriter`)."""
+
+class Record(NamedTuple):
+    """A row for the bounded queue: its table's model and its columns' values (audit entries
+    go to :class:`AuditWriter`)."""
+
+    model: type[VehicleEvent] | type[TelemetrySample]
+    values: dict[str, Any]
 
 
 @dataclass
@@ -54,36 +70,38 @@ class RecorderStats:
     failed_batches: int = 0
 
 
-def event_row(event: m.Event, received_at: datetime) -> VehicleEvent:
-    return VehicleEvent(
-        vehicle_id=event.vehicle_id,
-        seq=event.seq,
-        sim_time_s=event.sim_time_s,
-        received_at=received_at,
-        severity=event.severity.value,
-        code=event.code,
-        text=event.text,
-    )
+def event_row(event: m.Event, received_at: datetime) -> Record:
+    values = {
+        "vehicle_id": event.vehicle_id,
+        "seq": event.seq,
+        "sim_time_s": event.sim_time_s,
+        "received_at": received_at,
+        "severity": event.severity.value,
+        "code": event.code,
+        "text": event.text,
+    }
+    return Record(VehicleEvent, values)
 
 
-def telemetry_row(report: m.StatusReport, received_at: datetime) -> TelemetrySample:
+def telemetry_row(report: m.StatusReport, received_at: datetime) -> Record:
     vital = report.vital_control
-    return TelemetrySample(
-        vehicle_id=report.vehicle_id,
-        sim_time_s=report.sim_time_s,
-        received_at=received_at,
-        position_m=report.position_m,
-        speed_mps=report.speed_mps,
-        traction_force_n=report.traction_force_n,
-        reference_speed_mps=report.reference_speed_mps,
-        permitted_speed_mps=report.permitted_speed_mps,
-        intervention_speed_mps=report.intervention_speed_mps,
-        ato_state=report.ato_state.value,
-        etcs_mode=report.etcs_mode.value,
-        sc_state=report.sc_state.value,
-        eb=bool(vital is not None and vital.eb_commanded),
-        journey_id=report.journey_id,
-    )
+    values = {
+        "vehicle_id": report.vehicle_id,
+        "sim_time_s": report.sim_time_s,
+        "received_at": received_at,
+        "position_m": report.position_m,
+        "speed_mps": report.speed_mps,
+        "traction_force_n": report.traction_force_n,
+        "reference_speed_mps": report.reference_speed_mps,
+        "permitted_speed_mps": report.permitted_speed_mps,
+        "intervention_speed_mps": report.intervention_speed_mps,
+        "ato_state": report.ato_state.value,
+        "etcs_mode": report.etcs_mode.value,
+        "sc_state": report.sc_state.value,
+        "eb": bool(vital is not None and vital.eb_commanded),
+        "journey_id": report.journey_id,
+    }
+    return Record(TelemetrySample, values)
 
 
 @dataclass
@@ -216,11 +234,13 @@ class Recorder:
     stats: RecorderStats = field(default_factory=RecorderStats)
 
     def __post_init__(self) -> None:
-        self._queue: queue.Queue[Record | None] = queue.Queue(maxsize=self.capacity)
+        self._pending: deque[Record] = deque()
+        self._wake = threading.Event()
+        self._idle = threading.Condition()
+        self._writing = False
+        self._closing = False
         self._last_sample: dict[str, int] = {}
         self._sample_lock = threading.Lock()
-        self._idle = threading.Condition()
-        self._busy = 0
         self.audit = AuditWriter(self.factory)
         self._thread = threading.Thread(target=self._run, name="trackside-recorder", daemon=True)
         self._thread.start()
@@ -231,14 +251,13 @@ class Recorder:
         if isinstance(row, AuditEntry):
             self.audit.offer(row)
             return True
-        try:
-            self._queue.put_nowait(row)
-        except queue.Full:
+        if len(self._pending) >= self.capacity:
             self.stats.dropped += 1
             return False
-        with self._idle:
-            self._busy += 1
+        self._pending.append(row)
         self.stats.queued += 1
+        if not self._wake.is_set():  # the writer clears it before it takes rows
+            self._wake.set()
         return True
 
     def offer_event(self, event: m.Event) -> bool:
@@ -257,44 +276,43 @@ class Recorder:
     def flush(self, timeout_s: float = 5.0) -> bool:
         """Wait until everything offered so far is written (or dropped); for tests and shutdown."""
         with self._idle:
-            rows = self._idle.wait_for(lambda: self._busy == 0, timeout_s)
+            rows = self._idle.wait_for(lambda: not self._pending and not self._writing, timeout_s)
         return rows and self.audit.flush(timeout_s)
 
     def _run(self) -> None:
-        while True:
-            first = self._queue.get()
-            if first is None:
-                return
-            batch = [first]
-            stop = False
-            while len(batch) < BATCH:
-                try:
-                    row = self._queue.get_nowait()
-                except queue.Empty:
-                    break
-                if row is None:
-                    stop = True
-                    break
-                batch.append(row)
-            self._write(batch)
-            if stop:
-                return
+        while not (self._closing and not self._pending):
+            self._wake.wait()
+            self._wake.clear()
+            if not self._closing:
+                time.sleep(COLLECT_S)  # more rows come in the meantime: fewer, larger writes
+            while self._pending:
+                with self._idle:
+                    batch = [
+                        self._pending.popleft() for _ in range(min(ROW_BATCH, len(self._pending)))
+                    ]
+                    self._writing = True
+                self._write(batch)
 
     def _write(self, batch: list[Record]) -> None:
+        tables: dict[type[VehicleEvent] | type[TelemetrySample], list[dict[str, Any]]] = {}
+        for model, values in batch:
+            tables.setdefault(model, []).append(values)
         try:
             with self.factory() as db, db.begin():
-                db.add_all(batch)
+                for model, rows in tables.items():
+                    db.execute(insert(model), rows)
             self.stats.written += len(batch)
         except Exception:  # a database outage must not kill the recorder
             self.stats.failed_batches += 1
             _log.exception("could not record %d rows", len(batch))
         finally:
             with self._idle:
-                self._busy -= len(batch)
+                self._writing = False
                 self._idle.notify_all()
 
     def close(self, timeout_s: float = 10.0) -> None:
         """Write what is queued, then stop the threads."""
-        self._queue.put(None)
+        self._closing = True
+        self._wake.set()
         self._thread.join(timeout_s)
         self.audit.close(timeout_s)

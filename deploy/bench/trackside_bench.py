@@ -20,7 +20,8 @@ import multiprocessing
 import tempfile
 import threading
 import time
-from dataclasses import dataclass
+from collections import Counter
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypedDict
 
@@ -66,6 +67,8 @@ class BenchFigures:
     frames: int
     rest_errors: int
     rest_by_kind_ms: dict[str, dict[str, float]]
+    rest_error_codes: dict[str, int] = field(default_factory=dict)
+    """The answers ≥ 400 by request kind and status code."""
 
 
 class _LoadFigures(TypedDict):
@@ -74,6 +77,7 @@ class _LoadFigures(TypedDict):
     rest: list[float]
     by_kind: dict[str, list[float]]
     errors: int
+    error_codes: dict[str, int]
     live: list[float]
 
 
@@ -235,6 +239,9 @@ def load_process(
             "rest": [duration for duration, _, _ in samples],
             "by_kind": {kind: [d for d, _, k in samples if k == kind] for kind in KINDS},
             "errors": sum(1 for _, code, _ in samples if code >= 400),
+            "error_codes": dict(
+                Counter(f"{kind} {code}" for _, code, kind in samples if code >= 400)
+            ),
             "live": [latency for part in live for latency in part],
         }
     )
@@ -360,6 +367,7 @@ def _bench_figures(figures: _LoadFigures) -> BenchFigures:
         requests=len(figures["rest"]),
         frames=len(figures["live"]),
         rest_errors=figures["errors"],
+        rest_error_codes=figures["error_codes"],
         rest_by_kind_ms=by_kind,
     )
 
@@ -391,5 +399,6 @@ def bench_trackside(*, vehicles: int, seconds: float, rate_hz: float, sockets: i
             f"≤ {target:.0f}",
         )
     console.print(table)
-    console.print(f"REST answers ≥ 400: {figures.rest_errors}")
+    codes = ", ".join(f"{what}: {n}" for what, n in sorted(figures.rest_error_codes.items()))
+    console.print(f"REST answers ≥ 400: {figures.rest_errors}" + (f" ({codes})" if codes else ""))
     return figures

@@ -9,6 +9,7 @@ hold's row stays until someone selects the vehicle: every read here treats it as
 
 from __future__ import annotations
 
+import threading
 from datetime import UTC, datetime, timedelta
 
 from sqlalchemy import select, update
@@ -20,6 +21,7 @@ from trackside.models import Role, User, VehicleHold
 
 __all__ = [
     "DEFAULT_LEASE_S",
+    "changes",
     "check_holder",
     "expires_at",
     "holder",
@@ -33,8 +35,24 @@ DEFAULT_LEASE_S = 60.0
 """A hold's lease when the settings say nothing else [s]."""
 
 
+_changed = 0
+_changed_lock = threading.Lock()
+
+
 def _now() -> datetime:
     return datetime.now(UTC)
+
+
+def changes() -> int:
+    """How many times a hold was taken, taken over or given up in this process: a cache of the
+    holders is stale once it moves (renewals only extend a lease, and do not count)."""
+    return _changed
+
+
+def _count_change() -> None:
+    global _changed
+    with _changed_lock:
+        _changed += 1
 
 
 def expires_at(hold: VehicleHold) -> datetime:
@@ -47,14 +65,18 @@ def _live(hold: VehicleHold | None, now: datetime) -> VehicleHold | None:
     return hold if hold is not None and expires_at(hold) > now else None
 
 
-def holders(db: Session) -> dict[str, VehicleHold]:
-    """Every hold in force, by vehicle (expired ones left out)."""
+def holders(db: Session) -> dict[str, tuple[str, datetime]]:
+    """Every hold in force, by vehicle: its holder and the end of its lease in UTC (expired
+    ones left out). Columns, not ORM objects: the fleet's list and stream read it often, and
+    with a thousand held vehicles building the objects took most of a request."""
     now = _now()
-    return {
-        hold.vehicle_id: hold
-        for hold in db.scalars(select(VehicleHold))
-        if _live(hold, now) is not None
-    }
+    held = {}
+    columns = select(VehicleHold.vehicle_id, VehicleHold.username, VehicleHold.expires_at)
+    for vehicle_id, username, at in db.execute(columns):
+        until = at if at.tzinfo is not None else at.replace(tzinfo=UTC)
+        if until > now:
+            held[vehicle_id] = (username, until)
+    return held
 
 
 def holder(db: Session, vehicle_id: str) -> VehicleHold | None:
@@ -90,6 +112,7 @@ def _create(
     except IntegrityError as exc:  # another driver took it meanwhile
         db.rollback()
         raise ConflictError(f"{vehicle_id} was just taken by another user") from exc
+    _count_change()
     return hold
 
 
@@ -112,6 +135,7 @@ def _take_over(
     if getattr(taken, "rowcount", 0) != 1:
         raise ConflictError(f"{hold.vehicle_id} was just taken by another user")
     db.refresh(hold)
+    _count_change()
     return hold
 
 
@@ -138,6 +162,7 @@ def release(db: Session, vehicle_id: str, user: User) -> None:
         raise ConflictError(f"{vehicle_id} is held by {hold.username}")
     db.delete(hold)
     db.flush()
+    _count_change()
 
 
 def check_holder(db: Session, vehicle_id: str, user: User, *, lease_s: float | None = None) -> None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated, Any
 
-from fastapi import APIRouter, HTTPException, Path, Query, status
+from fastapi import APIRouter, HTTPException, Path, Query, Request, Response, status
 
 from protocol import messages as m
 from protocol.units import MPS_PER_KMH
@@ -34,6 +34,7 @@ from trackside.api.schemas import (
     VehiclePublic,
 )
 from trackside.services import history, holds
+from trackside.services.fleet_list import FleetListCache
 
 __all__ = ["router"]
 
@@ -49,22 +50,35 @@ COMMAND_ERRORS: dict[int | str, dict[str, Any]] = {
 }
 
 
-@router.get("")
+@router.get("", response_model=list[VehiclePublic])
 def list_vehicles(
-    bridge: BridgeDep, db: SessionDep, simulated: SimulatedDep, _user: ObserverUser
-) -> list[VehiclePublic]:
+    request: Request,
+    bridge: BridgeDep,
+    db: SessionDep,
+    simulated: SimulatedDep,
+    _user: ObserverUser,
+) -> Response:
     """List every vehicle seen, whether alive, its holder and the end of their lease, and the
-    latest status of the alive ones."""
-    held = holds.holders(db)
-    return [
-        VehiclePublic.from_snapshot(
-            snapshot,
-            holder=held[snapshot.id].username if snapshot.id in held else None,
-            hold_expires_at=holds.expires_at(held[snapshot.id]) if snapshot.id in held else None,
-            simulated_operator=snapshot.id in simulated,
-        )
-        for snapshot in bridge.fleet()
-    ]
+    latest status of the alive ones (as of at most one status period ago:
+    :mod:`trackside.services.fleet_list`)."""
+
+    def build() -> list[VehiclePublic]:
+        held = holds.holders(db)
+        vehicles = []
+        for snapshot in bridge.fleet():
+            holder, until = held.get(snapshot.id, (None, None))
+            vehicles.append(
+                VehiclePublic.from_snapshot(
+                    snapshot,
+                    holder=holder,
+                    hold_expires_at=until,
+                    simulated_operator=snapshot.id in simulated,
+                )
+            )
+        return vehicles
+
+    cache: FleetListCache = request.app.state.fleet_list
+    return Response(cache.get(holds.changes(), build), media_type="application/json")
 
 
 @router.get("/{vehicle_id}", responses={404: {"description": "Never seen"}})

@@ -134,10 +134,14 @@ async def authenticate(websocket: WebSocket) -> Viewer | None:
 
 def _holders(factory: sessionmaker[Session]) -> Holds:
     with factory() as db:
-        return {
-            vehicle: (hold.username, holds.expires_at(hold))
-            for vehicle, hold in holds.holders(db).items()
-        }
+        return holds.holders(db)
+
+
+def _hold(factory: sessionmaker[Session], vehicle_id: str) -> tuple[str, datetime] | None:
+    """The vehicle's holder and the end of their lease, if it is held."""
+    with factory() as db:
+        hold = holds.holder(db, vehicle_id)
+        return None if hold is None else (hold.username, holds.expires_at(hold))
 
 
 def _fleet_frame(app: Any, held: Holds) -> dict[str, Any]:
@@ -214,13 +218,13 @@ async def vehicle_stream(websocket: WebSocket, vehicle_id: str) -> None:
     simulated = operator is not None and vehicle_id in operator.operator.vehicles
     feed = hub.open(vehicle_id, asyncio.get_running_loop())
     loop = asyncio.get_running_loop()
-    hold = (await asyncio.to_thread(_holders, factory)).get(vehicle_id)
+    hold = await asyncio.to_thread(_hold, factory, vehicle_id)
     holder_at = loop.time()
     try:
         while await viewer.keep():
             await feed.wait(HEARTBEAT_S)
             if loop.time() - holder_at >= HOLDER_REFRESH_S:
-                hold = (await asyncio.to_thread(_holders, factory)).get(vehicle_id)
+                hold = await asyncio.to_thread(_hold, factory, vehicle_id)
                 holder_at = loop.time()
             status, events = feed.take()
             for event in events:

@@ -1,0 +1,69 @@
+"""The recorder's telemetry and events: one status per vehicle and second kept, written in bulk
+from its own thread on SQLite and PostgreSQL; a full queue drops and counts."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+from sqlalchemy import Engine, func, select
+from sqlalchemy.orm import Session, sessionmaker
+
+from protocol import messages as m
+from tests.trackside.reports import status_report
+from trackside.db import create_database_engine, migrate
+from trackside.models import TelemetrySample, VehicleEvent
+from trackside.recorder import Recorder
+
+
+@pytest.fixture
+def factory(database_url: str) -> Iterator[sessionmaker[Session]]:
+    engine: Engine = create_database_engine(database_url)
+    migrate(engine)
+    yield sessionmaker(engine, class_=Session, expire_on_commit=False)
+    engine.dispose()
+
+
+def _report(vehicle_id: str, sim_time_s: float) -> m.StatusReport:
+    return status_report(vehicle_id, 100.0, line_id="bologna-ring").model_copy(
+        update={"sim_time_s": sim_time_s}
+    )
+
+
+def test_one_status_a_second_per_vehicle_and_every_event_are_written(
+    factory: sessionmaker[Session],
+) -> None:
+    recorder = Recorder(factory)
+    kept = [
+        recorder.offer_status(_report(vehicle, 0.2 * step))
+        for step in range(25)  # 5 s at 5 Hz
+        for vehicle in ("REC1", "REC2")
+    ]
+    event = m.Event(
+        vehicle_id="REC1", seq=1, sim_time_s=1.0, severity=m.EventSeverity.INFO, code="x", text="y"
+    )
+    assert recorder.offer_event(event)
+    assert recorder.flush()
+    recorder.close()
+    assert sum(kept) == 10
+    with factory() as db:
+        samples = db.scalars(
+            select(TelemetrySample.sim_time_s)
+            .where(TelemetrySample.vehicle_id == "REC1")
+            .order_by(TelemetrySample.sim_time_s)
+        ).all()
+        events = db.scalar(select(func.count()).where(VehicleEvent.vehicle_id == "REC1"))
+    assert samples == pytest.approx([0.0, 1.0, 2.0, 3.0, 4.0])
+    assert events == 1
+    assert recorder.stats.written == 11
+
+
+def test_a_full_queue_drops_and_counts_and_the_rest_is_written(
+    factory: sessionmaker[Session],
+) -> None:
+    recorder = Recorder(factory, capacity=3)
+    offered = [recorder.offer_status(_report(f"REC{index}", 0.0)) for index in range(50)]
+    assert recorder.flush()
+    recorder.close()
+    assert recorder.stats.dropped == offered.count(False)
+    assert recorder.stats.written == offered.count(True) >= 3

@@ -1,0 +1,48 @@
+"""The fleet's list (``GET /vehicles``) as JSON, built at most every :data:`MAX_AGE_S`.
+
+With a thousand vehicles the list is a megabyte: every vehicle's latest status, holder and
+lease, validated and serialised. Built on each request it took most of a request's time and,
+under the interpreter's lock, delayed every other request and the status stream (docs/
+trackside.md, "Benchmark"). The statuses change at 5 Hz, so a list younger than one report
+period is as fresh as the fleet; it is built again at once when a hold is taken or given up
+(:func:`trackside.services.holds.changes`). A renewed lease shows its new end at the next build.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+from pydantic import TypeAdapter
+
+from trackside.api.schemas import VehiclePublic
+
+__all__ = ["MAX_AGE_S", "FleetListCache"]
+
+MAX_AGE_S = 0.2
+"""The oldest list served [s]: one status period at 5 Hz."""
+
+_LIST = TypeAdapter(list[VehiclePublic])
+
+
+class FleetListCache:
+    """The last list built, its build time and the holds' change count it saw; thread-safe
+    (one build at a time: the requests that come meanwhile get that build)."""
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._body = b""
+        self._built_s = -float("inf")
+        self._changes = -1
+
+    def get(self, changes: int, build: Callable[[], list[VehiclePublic]]) -> bytes:
+        """The list's JSON: the last one if younger than :data:`MAX_AGE_S` and built after the
+        holds' ``changes``-th change, else ``build()``'s."""
+        with self._lock:
+            now = self._clock()
+            if changes != self._changes or now - self._built_s >= MAX_AGE_S:
+                self._body = _LIST.dump_json(build())
+                self._built_s, self._changes = now, changes
+            return self._body
