@@ -101,8 +101,11 @@ def _report(vehicle: str, seq: int) -> m.StatusReport:
     )
 
 
-def fleet_process(endpoint: str, vehicles: int, seconds: float, ready: Any) -> None:
-    """Publish every vehicle's status at 5 Hz, spread over the period; answer commands."""
+def fleet_process(
+    endpoint: str, vehicles: int, seconds: float, ready: Any, stop: Any | None = None
+) -> None:
+    """Publish every vehicle's status at 5 Hz, spread over the period; answer commands; for
+    ``seconds`` at most, or until ``stop`` is set."""
     with open_session(ZenohSettings(connect=(endpoint,))) as session:
         ids = [_vehicle_id(index) for index in range(vehicles)]
         tokens = [declare_liveliness(session, ALIVE_ONBOARD.format(vehicle=v)) for v in ids]
@@ -122,7 +125,7 @@ def fleet_process(endpoint: str, vehicles: int, seconds: float, ready: Any) -> N
         started = time.monotonic()
         seq = 0
         idle = threading.Event()
-        while time.monotonic() - started < seconds:
+        while time.monotonic() - started < seconds and not (stop is not None and stop.is_set()):
             round_start = started + seq * STATUS_PERIOD_S
             for index, publisher in enumerate(publishers):
                 due = round_start + index * STATUS_PERIOD_S / vehicles
@@ -336,8 +339,14 @@ def _run_fleet_and_load(
     [s], as :func:`load_process` puts them."""
     spawn = multiprocessing.get_context("spawn")
     fleet_ready = spawn.Event()
-    fleet_s = seconds + warmup_s + 5.0
-    fleet = spawn.Process(target=fleet_process, args=(endpoint, vehicles, fleet_s, fleet_ready))
+    # The fleet lives until the load is done: selecting a thousand vehicles before the load
+    # takes tens of seconds, and a fleet timed to the load alone left while it ran (every
+    # command to its vehicles then answered 404, not alive).
+    fleet_stop = spawn.Event()
+    fleet_s = seconds + warmup_s + 120.0 + vehicles * 0.1
+    fleet = spawn.Process(
+        target=fleet_process, args=(endpoint, vehicles, fleet_s, fleet_ready, fleet_stop)
+    )
     fleet.start()
     fleet_ready.wait(30.0)
     stop.wait(warmup_s)  # every vehicle seen alive and reporting
@@ -348,6 +357,8 @@ def _run_fleet_and_load(
     load.start()
     figures: _LoadFigures = results.get(timeout=seconds + 120.0)
     load.join(10.0)
+    fleet_stop.set()
+    fleet.join(10.0)
     fleet.terminate()
     fleet.join(10.0)
     return figures
