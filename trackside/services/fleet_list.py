@@ -5,7 +5,8 @@ lease, validated and serialised. Built on each request it took most of a request
 under the interpreter's lock, delayed every other request and the status stream (docs/
 trackside.md, "Benchmark"). The statuses change at 5 Hz, so a list younger than one report
 period is as fresh as the fleet; it is built again at once when a hold is taken or given up
-(:func:`trackside.services.holds.changes`). A renewed lease shows its new end at the next build.
+in this process (:func:`trackside.services.holds.changes`). A renewed lease, or a hold changed
+through another trackside instance on the same database, shows at the next build.
 """
 
 from __future__ import annotations
