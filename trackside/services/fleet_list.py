@@ -13,18 +13,42 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Container, Iterable
+from datetime import datetime
 
 from pydantic import TypeAdapter
 
 from trackside.api.schemas import VehiclePublic
+from trackside.bridge import VehicleSnapshot
 
-__all__ = ["MAX_AGE_S", "FleetListCache"]
+__all__ = ["MAX_AGE_S", "FleetListCache", "public_fleet"]
 
 MAX_AGE_S = 0.2
 """The oldest list served [s]: one status period at 5 Hz."""
 
 _LIST = TypeAdapter(list[VehiclePublic])
+
+
+def public_fleet(
+    snapshots: Iterable[VehicleSnapshot],
+    held: dict[str, tuple[str, datetime]],
+    simulated: Container[str],
+) -> list[VehiclePublic]:
+    """Each vehicle as the fleet's list and stream show it: ``held`` by vehicle the holder and
+    the end of the lease (:func:`trackside.services.holds.holders`), ``simulated`` the vehicles
+    the simulated operator answers."""
+    vehicles = []
+    for snapshot in snapshots:
+        holder, until = held.get(snapshot.id, (None, None))
+        vehicles.append(
+            VehiclePublic.from_snapshot(
+                snapshot,
+                holder=holder,
+                hold_expires_at=until,
+                simulated_operator=snapshot.id in simulated,
+            )
+        )
+    return vehicles
 
 
 class FleetListCache:

@@ -34,7 +34,7 @@ from trackside.api.schemas import (
     VehiclePublic,
 )
 from trackside.services import history, holds
-from trackside.services.fleet_list import FleetListCache
+from trackside.services.fleet_list import FleetListCache, public_fleet
 
 __all__ = ["router"]
 
@@ -63,19 +63,7 @@ def list_vehicles(
     :mod:`trackside.services.fleet_list`)."""
 
     def build() -> list[VehiclePublic]:
-        held = holds.holders(db)
-        vehicles = []
-        for snapshot in bridge.fleet():
-            holder, until = held.get(snapshot.id, (None, None))
-            vehicles.append(
-                VehiclePublic.from_snapshot(
-                    snapshot,
-                    holder=holder,
-                    hold_expires_at=until,
-                    simulated_operator=snapshot.id in simulated,
-                )
-            )
-        return vehicles
+        return public_fleet(bridge.fleet(), holds.holders(db), simulated)
 
     cache: FleetListCache = request.app.state.fleet_list
     return Response(cache.get(holds.changes(), build), media_type="application/json")

@@ -26,11 +26,11 @@ from typing import Any
 from fastapi import APIRouter, WebSocket, WebSocketDisconnect
 from sqlalchemy.orm import Session, sessionmaker
 
-from trackside.api.schemas import VehiclePublic
 from trackside.bridge import ZenohBridge
 from trackside.errors import AuthenticationError
 from trackside.live import LiveHub
 from trackside.services import holds, users
+from trackside.services.fleet_list import public_fleet
 from trackside.simulated_operator import SimulatedOperatorThread
 
 __all__ = ["AUTH_DEADLINE_S", "POLICY_VIOLATION", "router"]
@@ -148,17 +148,8 @@ def _fleet_frame(app: Any, held: Holds) -> dict[str, Any]:
     bridge: ZenohBridge = app.state.bridge
     operator: SimulatedOperatorThread | None = app.state.simulated_operator
     simulated = frozenset() if operator is None else operator.operator.vehicles
-    vehicles = []
-    for snapshot in bridge.fleet():
-        holder, until = held.get(snapshot.id, (None, None))
-        public = VehiclePublic.from_snapshot(
-            snapshot,
-            holder=holder,
-            hold_expires_at=until,
-            simulated_operator=snapshot.id in simulated,
-        )
-        vehicles.append(public.model_dump(mode="json"))
-    return {"type": "fleet", "vehicles": vehicles}
+    vehicles = public_fleet(bridge.fleet(), held, simulated)
+    return {"type": "fleet", "vehicles": [public.model_dump(mode="json") for public in vehicles]}
 
 
 @router.websocket("/fleet")
