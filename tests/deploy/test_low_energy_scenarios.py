@@ -1,6 +1,7 @@
 """The Energy Manager's library scenarios (issue 22): `low-energy`, where the plan is slowed
-within the arrival windows and the journey finished, and `low-energy-short`, where not even that
-suffices and the operator finds the warning before he engages."""
+within the arrival window and the journey finished, and `low-energy-short`, where not even that
+suffices and the operator finds the warning before he engages; and the premise of both, that the
+batteries really cannot finish the journey at the timetable's pace."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from deploy.scenario import load_scenario, parse_scenario
+from deploy.scenario.loader import SCENARIO_DIR
 from deploy.scenario.runner import RunOptions, run_scenario
 from deploy.scenario.vehicle_setup import onboard_settings
 
@@ -41,7 +43,30 @@ def test_low_energy_slows_the_plan_and_finishes_the_journey() -> None:
     engaged = [a.at_s for a in kpis.actions or [] if a.action == "engage"]
     assert engaged
     assert seen[0].at_s <= engaged[0]
-    assert [stop.name for stop in kpis.stops] == ["east", "south"]
+    assert [stop.name for stop in kpis.stops] == ["lodi"]
+
+
+@pytest.mark.e2e
+def test_at_the_timetable_s_pace_the_batteries_go_under_the_threshold() -> None:
+    """`low-energy` with no arrival window, so no slower plan: the Energy Manager warns, the
+    operator engages all the same, and the run goes under the VCU's charge-sustaining threshold
+    that the slowed plan stays above (the reserve kept for a failed range extender)."""
+    text = (SCENARIO_DIR / "low-energy.toml").read_text(encoding="utf-8")
+    for old, new in (
+        ("arrival_window_s = 300.0", "arrival_window_s = 0.0"),
+        ('event = "energy.slower_profile"', 'event = "energy.insufficient"'),
+    ):
+        assert old in text
+        text = text.replace(old, new)
+    kpis = run_scenario(parse_scenario(text), RunOptions(fast=True)).kpis
+    seen = [a for a in kpis.actions or [] if a.action == "see_event"]
+    assert [a.accepted for a in seen] == [True]
+    assert [stop.name for stop in kpis.stops] == ["lodi"]
+    assert kpis.stops[0].planned_arrival_s == pytest.approx(1000.0)
+    assert kpis.soc_min is not None
+    floor = [e.value for e in load_scenario("low-energy").expect if e.kpi == "soc_min"]
+    assert floor == [0.465]
+    assert kpis.soc_min < floor[0]
 
 
 @pytest.mark.e2e
