@@ -8,6 +8,7 @@ the same model, limits and arrival time, minimising traction energy at the wheel
 
     min Σ f_i Δs   s.t.  M(1 + ρ)(v_{i+1}² − v_i²)/2 = (f_i − b_i − R(v̄_i) − F_track,i) Δs,
                          Σ 2Δs / (v_i + v_{i+1}) = T,  v_i ≤ min(MRSP, cap),
+                         (the same sum up to each passing point = its time),
                          0 ≤ f_i ≤ F_max,  f_i v̄_i ≤ P_max,  0 ≤ b_i,
                          |dv/dt| ≤ a_max,  v_0 = v_K = 0.
 """
@@ -15,6 +16,7 @@ the same model, limits and arrival time, minimising traction energy at the wheel
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -84,12 +86,16 @@ def optimal_leg(
     cap_mps: float | None = None,
     step_m: float = 10.0,
     max_acceleration_mps2: float = MAX_ACCELERATION_MPS2,
+    passing: Sequence[tuple[float, float]] = (),
 ) -> OptimalLeg:
-    """The energy-optimal run of one leg, standstill to standstill, in ``duration_s`` [s]."""
-    count = max(4, math.ceil(distance_m / step_m))
-    ds = distance_m / count
-    chainages = [start_chainage_m + (i + 0.5) * ds for i in range(count)]
-    nodes = [start_chainage_m + i * ds for i in range(count + 1)]
+    """The energy-optimal run of one leg, standstill to standstill, in ``duration_s`` [s];
+    ``passing`` are (offset into the leg [m], time from its departure [s]) to pass at exactly:
+    each a node of the grid, so the optimum of a leg with passing points is exact."""
+    nodes_m = _grid_m(distance_m, step_m, [offset for offset, _ in passing])
+    ds_m = np.diff(nodes_m)
+    count = len(ds_m)
+    nodes = [start_chainage_m + float(x) for x in nodes_m]
+    chainages = [start_chainage_m + float(x) for x in 0.5 * (nodes_m[1:] + nodes_m[:-1])]
     ceiling = _ceilings_mps(track_map, model, start_chainage_m, distance_m, cap_mps, nodes)
     track = [track_force_n(track_map, model, c) for c in chainages]
     mass = model.mass_kg * (1.0 + model.rotating_mass_factor)
@@ -98,6 +104,7 @@ def optimal_leg(
     v = opti.variable(count + 1)
     traction = opti.variable(count)
     brake = opti.variable(count)
+    ds = ca.DM(ds_m)
     opti.subject_to(v[0] == 0)
     opti.subject_to(v[count] == 0)
     opti.subject_to(opti.bounded(0, v, ca.DM(ceiling)))
@@ -112,8 +119,12 @@ def optimal_leg(
     opti.subject_to(mass * (v[1:] ** 2 - v[:-1] ** 2) / 2 == net * ds)
     opti.subject_to(traction * average <= model.max_traction_power_w)
     opti.subject_to(opti.bounded(-max_acceleration_mps2, net / mass, max_acceleration_mps2))
-    opti.subject_to(ca.sum1(ds / average) == duration_s)
-    opti.minimize(ca.sum1(traction) * ds + 1e-6 * ca.sumsqr(brake) * ds)
+    dt = ds / average
+    opti.subject_to(ca.sum1(dt) == duration_s)
+    for offset_m, time_s in passing:
+        node = int(np.argmin(np.abs(nodes_m - offset_m)))
+        opti.subject_to(ca.sum1(dt[:node]) == time_s)
+    opti.minimize(ca.dot(traction, ds) + 1e-6 * ca.dot(brake**2, ds))
     cruise = distance_m / duration_s * 1.3
     opti.set_initial(v, _initial_speeds(count, cruise, ceiling))
     opti.set_initial(traction, model.davis_a_n)
@@ -123,13 +134,28 @@ def optimal_leg(
     forces = np.asarray(solution.value(traction), dtype=float)
     brakes = np.asarray(solution.value(brake), dtype=float)
     return OptimalLeg(
-        distances_m=np.linspace(0.0, distance_m, count + 1),
+        distances_m=nodes_m,
         speeds_mps=speeds,
         traction_forces_n=forces,
         brake_forces_n=brakes,
-        traction_energy_j=float(forces.sum() * ds),
+        traction_energy_j=float(np.dot(forces, ds_m)),
         duration_s=duration_s,
     )
+
+
+def _grid_m(distance_m: float, step_m: float, interior_m: Sequence[float]) -> FloatArray:
+    """Nodes over the leg [m] from its start: even steps of at most ``step_m`` between the
+    ends and the ``interior_m`` offsets, which are nodes; at least four intervals."""
+    bounds = sorted({0.0, distance_m, *(min(max(x, 0.0), distance_m) for x in interior_m)})
+    if len(bounds) == 2:
+        count = max(4, math.ceil(distance_m / step_m))
+        return np.linspace(0.0, distance_m, count + 1)
+    pieces = [
+        np.linspace(a, b, max(1, math.ceil((b - a) / step_m)) + 1)[:-1]
+        for a, b in zip(bounds[:-1], bounds[1:], strict=True)
+        if b > a
+    ]
+    return np.concatenate([*pieces, [distance_m]])
 
 
 def _ceilings_mps(

@@ -66,6 +66,26 @@ def test_the_optimum_beats_the_plain_lspb_and_keeps_the_limits() -> None:
     assert float(np.sum(ds / average)) == pytest.approx(300.0, rel=1e-6)
 
 
+def test_the_optimum_passes_a_passing_point_at_its_time() -> None:
+    """An interior time constraint: the optimum is at the passing point at its time (the point
+    a node of the grid, between nodes 10 m apart), arrives on time, and costs more than the
+    optimum free to pass it when it likes, which is earlier than asked here."""
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    leg = {"start_chainage_m": 3400.0, "distance_m": 2850.0, "duration_s": 430.0}
+    free = optimal_leg(ring, URV_PARAMETERS, cap_mps=CAP_MPS, **leg)
+    bound = optimal_leg(ring, URV_PARAMETERS, cap_mps=CAP_MPS, passing=[(1403.0, 210.0)], **leg)
+    average = (bound.speeds_mps[:-1] + bound.speeds_mps[1:]) / 2
+    times = np.concatenate([[0.0], np.cumsum(np.diff(bound.distances_m) / average)])
+    node = int(np.argmin(np.abs(bound.distances_m - 1403.0)))
+    assert bound.distances_m[node] == pytest.approx(1403.0)
+    assert times[node] == pytest.approx(210.0, abs=1e-3)
+    assert times[-1] == pytest.approx(430.0, abs=1e-3)
+    free_average = (free.speeds_mps[:-1] + free.speeds_mps[1:]) / 2
+    free_times = np.cumsum(np.diff(free.distances_m) / free_average)
+    assert float(np.interp(1403.0, free.distances_m[1:], free_times)) < 205.0
+    assert bound.traction_energy_j > 1.005 * free.traction_energy_j
+
+
 def _never_above(plan: OdpPlan, cap_mps: float) -> None:
     """The reference stays under the MRSP and the cap at every instant of the plan."""
     for t in np.arange(0.0, plan.end_s, 0.25):
