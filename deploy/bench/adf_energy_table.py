@@ -8,11 +8,12 @@ less one); whether the leg kept the LSPB (a fallback); the plan's processor time
 is single-threaded Python; its wall time on a loaded machine is the processor time and the
 waits).
 
-The optimum is taken with the brake force limited to the plan's service braking
-(``MAX_BRAKING_MPS2`` × M(1 + ρ)): the plan brakes into its stops at 0.7 m/s² on purpose (the
-NMPC's margin to the URV's 0.93 m/s² brake), and an optimum braking at 0.93 m/s² gains its time
-there, not in the driving (docs/energy-planning.md). A leg with a passing point is compared with
-the optimum that passes it at the same time (an interior time constraint of ``optimal_leg``).
+The optimum brakes as the plan does: at most ``MAX_BRAKING_MPS2`` in total (brake, resistance
+and gradient together; its brake force also limited to that rate × M(1 + ρ)). The plan brakes
+into its stops at 0.7 m/s² on purpose (the NMPC's margin to the URV's 0.93 m/s² brake), and an
+optimum braking harder gains its time there, not in the driving (docs/energy-planning.md). A
+leg with a passing point is compared with the optimum that passes it at the same time (an
+interior time constraint of ``optimal_leg``).
 
 Legs: the three of the bologna-ring field-test lap, three of milano-bologna (speed-limit
 changes at up to 200 km/h, a 30 km leg at 200 km/h with a 10 ‰ hill, a 14 km leg over a 12 ‰
@@ -216,6 +217,7 @@ def leg_result(leg: BenchLeg, model: PointMassParameters = URV_PARAMETERS) -> Le
             duration_s=leg.duration_s,
             cap_mps=leg.cap_mps,
             step_m=_optimum_step_m(leg.distance_m),
+            max_deceleration_mps2=MAX_BRAKING_MPS2,
             passing=leg.passing,
         ).traction_energy_j
     except RuntimeError:  # IPOPT did not converge

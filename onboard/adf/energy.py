@@ -86,11 +86,15 @@ def optimal_leg(
     cap_mps: float | None = None,
     step_m: float = 10.0,
     max_acceleration_mps2: float = MAX_ACCELERATION_MPS2,
+    max_deceleration_mps2: float | None = None,
     passing: Sequence[tuple[float, float]] = (),
 ) -> OptimalLeg:
-    """The energy-optimal run of one leg, standstill to standstill, in ``duration_s`` [s];
-    ``passing`` are (offset into the leg [m], time from its departure [s]) to pass at exactly:
-    each a node of the grid, so the optimum of a leg with passing points is exact."""
+    """The energy-optimal run of one leg, standstill to standstill, in ``duration_s`` [s].
+
+    ``max_deceleration_mps2`` bounds the total deceleration (brake, resistance and track
+    forces together; ``max_acceleration_mps2`` when None), as a plan's kinematic braking rate
+    does. ``passing`` are (offset into the leg [m], time from its departure [s]) to pass at
+    exactly: each a node of the grid, so the optimum of a leg with passing points is exact."""
     nodes_m = _grid_m(distance_m, step_m, [offset for offset, _ in passing])
     ds_m = np.diff(nodes_m)
     count = len(ds_m)
@@ -118,7 +122,8 @@ def optimal_leg(
     net = traction - brake - resistance - ca.DM(track)
     opti.subject_to(mass * (v[1:] ** 2 - v[:-1] ** 2) / 2 == net * ds)
     opti.subject_to(traction * average <= model.max_traction_power_w)
-    opti.subject_to(opti.bounded(-max_acceleration_mps2, net / mass, max_acceleration_mps2))
+    deceleration = max_acceleration_mps2 if max_deceleration_mps2 is None else max_deceleration_mps2
+    opti.subject_to(opti.bounded(-deceleration, net / mass, max_acceleration_mps2))
     dt = ds / average
     opti.subject_to(ca.sum1(dt) == duration_s)
     for offset_m, time_s in passing:
