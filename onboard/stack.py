@@ -64,6 +64,13 @@ __all__ = [
 STANDSTILL_MPS = 0.01
 MIN_AUTHORITY_M = 5.0
 """An MA shorter than this ahead does not allow leaving a platform."""
+DEPARTURE_PREPARATION_S = 1.5
+"""The dwell counts as elapsed this long before a stop's departure [s]: ATO engages, the brake
+is released and the traction built up while the reference still stands (``onboard.adf.
+autonomous.STANDING_MARGIN_N``), so that the train leaves with its reference. Engaged at the
+departure, the brake's release and the demand's rate bound left it 0.6–1 s behind, which the
+NMPC caught up by overshooting the plan's speed and braking the excess away (docs/scenarios.md,
+"The energy certificate")."""
 REPLAN_MOVED_M = 1.0
 """A journey planned at acceptance is replanned at engagement if the vehicle moved more."""
 _ENGAGED = (m.AtoState.ENGAGED, m.AtoState.DISENGAGING)
@@ -440,7 +447,9 @@ def _ato_ob_inputs(
     output = stack.etcs.output
     ahead = output.end_of_authority_distance_m if output is not None else None
     journey_s = driving.journey_time_s(now_s)
-    dwell = stopped_at is None or journey_s >= driving.departure_s(stopped_at)
+    dwell = stopped_at is None or journey_s + DEPARTURE_PREPARATION_S >= driving.departure_s(
+        stopped_at
+    )
     return AtoObInputs(
         etcs=None if output is None else EtcsStatus.from_output(output, received_s=now_s),
         journey_profile_valid=plan is not None,

@@ -68,6 +68,12 @@ COAST_GAINS = (0.005, 0.1)
 """The acceleration asked per m of position error [1/s²] and per m/s of speed error [1/s]
 while coasting with the plan: a closed loop of 20 s, damped 0.7, which leaves the estimate's
 noise (σ 0.008 m/s, correlated over 1–2 s) at about 15 N."""
+STANDING_MARGIN_N = 300.0
+"""Before its departure, a standing train's demand is held this far [N] under what would move
+it on the onboard's model (the resistance at rest and the track's force): the brake is released
+and the traction built up ahead of the reference, which then leaves with the train rather than
+0.6–1 s ahead of it, and the model's error (Davis ±10 %, mass +5 % on a 30 ‰ descent: about
+250 N) still leaves the train standing."""
 REACHABLE_BRAKING_MPS2 = 0.7
 REACHABLE_DELAY_S = 1.2
 """Full braking as the NMPC can reach it: its rate bound and the actuator's lag take about a
@@ -195,8 +201,9 @@ class AutonomousDriving:
     ) -> float:
         """The force to apply now, from the measured distance travelled and speed."""
         target_distance, target_speed = self.plan.reference(now_s)
-        at_rest = target_speed == 0.0 and self.plan.reference(now_s + 1.0)[1] == 0.0
-        if at_rest and speed_mps < STANDSTILL_MPS and abs(distance_m - target_distance) < 1.0:
+        at_rest_now = target_speed == 0.0 and speed_mps < STANDSTILL_MPS
+        at_rest = at_rest_now and self.plan.reference(now_s + 1.0)[1] == 0.0
+        if at_rest and abs(distance_m - target_distance) < 1.0:
             self.controller.reset()
             return -self.model.max_brake_force_n
         if speed_mps < STANDSTILL_MPS:
@@ -218,7 +225,19 @@ class AutonomousDriving:
             reference=reference,
         )
         self.last_result = result
+        if at_rest_now and abs(distance_m - target_distance) < 1.0:
+            # Prepared for the departure, not yet gone: the NMPC's next rate bound starts from
+            # the demand sent.
+            demand = min(result.force_n, self._standing_force_n(distance_m))
+            self.controller.note_demand(demand)
+            return demand
         return min(result.force_n, self.stopping_force_n(now_s, distance_m, speed_mps))
+
+    def _standing_force_n(self, distance_m: float) -> float:
+        """The most a train standing before its departure is asked for [N]: the force that would
+        move it on the onboard's model, less :data:`STANDING_MARGIN_N`."""
+        track = self._track_force_n(self.plan.chainage_m(distance_m))
+        return self.model.davis_a_n + track - STANDING_MARGIN_N
 
     def _coasts(self, reference: NmpcReference, errors: tuple[float, float]) -> bool:
         """Whether the train coasts now: the plan coasts over the next

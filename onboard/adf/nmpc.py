@@ -274,6 +274,11 @@ class NmpcController:
         self._demand_n = None
         self._reference = None
 
+    def note_demand(self, demand_n: float) -> None:
+        """The demand [N] actually sent after the caller capped this controller's: the next
+        step's rate bound starts from it."""
+        self._demand_n = demand_n
+
     def solve(
         self,
         *,

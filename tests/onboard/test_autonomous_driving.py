@@ -189,3 +189,32 @@ def _on_plan_coasts(driving: object, plan: object, now_s: float) -> bool:
     distance_m, speed_mps = plan.reference(now_s)  # type: ignore[attr-defined]
     reference = driving.reference(now_s, speed_mps=speed_mps, distance_m=distance_m)  # type: ignore[attr-defined]
     return _reference_coasts(reference, URV_PARAMETERS, 0.2)
+
+
+def test_before_its_departure_the_brake_is_released_and_the_train_held_standing() -> None:
+    """Issue 22: in the last second before the reference leaves a stop, the brake's hold gives
+    way to a demand just under what would move the train on the onboard's model, from which the
+    NMPC's rate bound then builds the departure's traction; more than a second before, the
+    brake still holds."""
+    from onboard.adf.autonomous import STANDING_MARGIN_N, AutonomousDriving
+
+    ring = TrackMap(load_seed_line("bologna-ring"))
+    plan = plan_legs(ring, start_chainage_m=START_M, stops=STOPS, cap_mps=CAP_MPS)
+    driving = AutonomousDriving(plan, URV_PARAMETERS, NmpcController(URV_PARAMETERS))
+    departure_s = STOPS[0][2]
+    stop_m, _ = plan.reference(departure_s)
+    brake = -URV_PARAMETERS.max_brake_force_n
+
+    def demand(now_s: float, applied_n: float) -> float:
+        return driving.force_n(now_s, distance_m=stop_m, speed_mps=0.0, applied_force_n=applied_n)
+
+    assert demand(departure_s - 1.4, brake) == brake
+    chainage_m = plan.chainage_m(stop_m)
+    standing_n = URV_PARAMETERS.davis_a_n + driving._track_force_n(chainage_m)
+    applied, demands = brake, []
+    for step in range(5):
+        demands.append(demand(departure_s - 1.0 + 0.2 * step, applied))
+        applied += (demands[-1] - applied) * 0.2 / 0.5
+    assert max(demands) <= standing_n - STANDING_MARGIN_N + 1e-9
+    assert demands[-1] > brake / 2.0  # released
+    assert demand(departure_s + 0.2, applied) > standing_n - STANDING_MARGIN_N
