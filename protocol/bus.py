@@ -110,11 +110,19 @@ class TopicMonitor:
         """Measured rate [Hz] over the last window; 0 with fewer than two arrivals."""
         current = self._clock() if now is None else now
         with self._lock:
-            recent = [t for t in self._arrivals.get(key, ()) if current - t <= RATE_WINDOW_S]
-        if len(recent) < 2:
-            return 0.0
-        span = recent[-1] - recent[0]
-        return (len(recent) - 1) / span if span > 0 else 0.0
+            arrivals = self._arrivals.get(key) or deque()
+            # In the clock's order, and :meth:`record` keeps no more than a window behind the
+            # last: the few older than the window are the first ones.
+            stale = 0
+            for stamp in arrivals:
+                if current - stamp <= RATE_WINDOW_S:
+                    break
+                stale += 1
+            count = len(arrivals) - stale
+            if count < 2:
+                return 0.0
+            span = arrivals[-1] - arrivals[stale]
+        return (count - 1) / span if span > 0 else 0.0
 
     def rate_ok(self, key: str, now: float | None = None) -> bool:
         if not self.alive(key, now):

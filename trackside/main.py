@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gc
 import logging
+import sys
 import time
 from collections.abc import AsyncIterator, Callable
 from contextlib import (
@@ -71,6 +72,13 @@ Lifespan = Callable[[FastAPI], AbstractAsyncContextManager[None]]
 """What FastAPI runs around the service's life: start-up before ``yield``, shutdown after."""
 
 _log = logging.getLogger(__name__)
+
+
+SWITCH_INTERVAL_S = 0.0005
+"""How long a thread holds the interpreter while another waits for it [s] (Python's default is
+5 ms). A request gives the interpreter up at each database call and socket write, and takes it
+back only when the thread validating 5 000 status reports a second lets it go: at 5 ms a time,
+a command of some twenty such calls waited up to 100 ms (docs/trackside.md, "Benchmark")."""
 
 
 def _bootstrap_admin(settings: Settings, factory: sessionmaker[Session]) -> None:
@@ -354,9 +362,12 @@ def _lifespan(settings: Settings, zenoh_session: zenoh.Session | None) -> Lifesp
             # What start-up built lives as long as the service: keep it out of the cyclic
             # collector's full passes, which otherwise stall requests for tens of ms.
             gc.freeze()
+            switch_interval_s = sys.getswitchinterval()
+            sys.setswitchinterval(SWITCH_INTERVAL_S)
             try:
                 yield
             finally:
+                sys.setswitchinterval(switch_interval_s)
                 if scenario is not None:
                     scenario.close()
                 if operator is not None:

@@ -21,6 +21,7 @@ from protocol import (
     request_async,
 )
 from protocol import messages as m
+from protocol.bus import RATE_WINDOW_S
 from protocol.registry import COMMAND, EVENT, LINE_VERSION, STATUS
 from tests.conftest import wait_for
 
@@ -246,6 +247,24 @@ def test_monitor_alive_and_rate() -> None:
     clock.now += 0.2
     assert not monitor.alive(key)
     assert not monitor.rate_ok(key)
+
+
+def test_monitor_rate_counts_the_window_before_now_only() -> None:
+    """Arrivals kept (a window behind the last) but older than a window before now are left
+    out of the rate, as if counted one by one."""
+    clock = FakeClock()
+    monitor = TopicMonitor(5.0, clock)
+    stamps = []
+    for index in range(40):
+        stamps.append(clock.now)
+        monitor.record("k")
+        clock.now += 0.2 if index < 30 else 0.5
+    for quiet_s in (0.0, 1.3, 4.0, 5.2):
+        now = stamps[-1] + quiet_s
+        recent = [t for t in stamps if now - t <= RATE_WINDOW_S]
+        expected = (len(recent) - 1) / (recent[-1] - recent[0]) if len(recent) > 1 else 0.0
+        assert monitor.rate_hz("k", now) == pytest.approx(expected, rel=1e-12)
+    assert monitor.rate_hz("k", stamps[-1] + 5.2) == 0.0  # the last alone in the window
 
 
 def test_monitor_flags_a_slow_publisher() -> None:

@@ -92,6 +92,10 @@ class UserPublic(BaseModel):
 # -- vehicles ----------------------------------------------------------------------------------
 
 
+REPORT_ONLY_FIELDS: set[str] = {"schema_version", "vehicle_id", "seq"}
+"""The status report's fields that :class:`VehicleStatusPublic` leaves out."""
+
+
 class VehicleStatusPublic(BaseModel):
     """The vehicle's latest status report (SI units)."""
 
@@ -154,9 +158,7 @@ class VehiclePublic(BaseModel):
         report = snapshot.status
         status = None
         if report is not None:
-            fields = report.model_dump(
-                exclude={"schema_version", "vehicle_id", "seq"}, mode="python"
-            )
+            fields = report.model_dump(exclude=REPORT_ONLY_FIELDS, mode="python")
             status = VehicleStatusPublic(
                 **fields, age_s=snapshot.status_age_s, rate_ok=snapshot.status_rate_ok
             )

@@ -16,17 +16,15 @@ import time
 from collections.abc import Callable, Container, Iterable
 from datetime import datetime
 
-from pydantic import TypeAdapter
+from pydantic_core import to_json
 
-from trackside.api.schemas import VehiclePublic
+from trackside.api.schemas import REPORT_ONLY_FIELDS, VehiclePublic
 from trackside.bridge import VehicleSnapshot
 
-__all__ = ["MAX_AGE_S", "FleetListCache", "public_fleet"]
+__all__ = ["MAX_AGE_S", "FleetListCache", "fleet_json", "public_fleet"]
 
 MAX_AGE_S = 0.2
 """The oldest list served [s]: one status period at 5 Hz."""
-
-_LIST = TypeAdapter(list[VehiclePublic])
 
 
 def public_fleet(
@@ -51,6 +49,37 @@ def public_fleet(
     return vehicles
 
 
+def fleet_json(
+    snapshots: Iterable[VehicleSnapshot],
+    held: dict[str, tuple[str, datetime]],
+    simulated: Container[str],
+) -> bytes:
+    """The JSON of :func:`public_fleet`'s list, made without building its models: each report
+    dumped as JSON data without the fields the public status leaves out, its age and rate
+    added (``tests/trackside/test_fleet_list.py`` checks it against the models' JSON). A
+    third of the time for a thousand vehicles."""
+    vehicles = []
+    for snapshot in snapshots:
+        holder, until = held.get(snapshot.id, (None, None))
+        report = snapshot.status
+        status = None
+        if report is not None:
+            status = report.model_dump(mode="json", exclude=REPORT_ONLY_FIELDS)
+            status["age_s"] = snapshot.status_age_s
+            status["rate_ok"] = snapshot.status_rate_ok
+        vehicles.append(
+            {
+                "id": snapshot.id,
+                "alive": snapshot.alive,
+                "status": status,
+                "holder": holder,
+                "hold_expires_at": until,
+                "simulated_operator": snapshot.id in simulated,
+            }
+        )
+    return to_json(vehicles)
+
+
 class FleetListCache:
     """The last list built, its build time and the holds' change count it saw; thread-safe
     (one build at a time: the requests that come meanwhile get that build)."""
@@ -62,12 +91,12 @@ class FleetListCache:
         self._built_s = -float("inf")
         self._changes = -1
 
-    def get(self, changes: int, build: Callable[[], list[VehiclePublic]]) -> bytes:
+    def get(self, changes: int, build: Callable[[], bytes]) -> bytes:
         """The list's JSON: the last one if younger than :data:`MAX_AGE_S` and built after the
         holds' ``changes``-th change, else ``build()``'s."""
         with self._lock:
             now = self._clock()
             if changes != self._changes or now - self._built_s >= MAX_AGE_S:
-                self._body = _LIST.dump_json(build())
+                self._body = build()
                 self._built_s, self._changes = now, changes
             return self._body

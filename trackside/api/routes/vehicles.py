@@ -34,7 +34,7 @@ from trackside.api.schemas import (
     VehiclePublic,
 )
 from trackside.services import history, holds
-from trackside.services.fleet_list import FleetListCache, public_fleet
+from trackside.services.fleet_list import FleetListCache, fleet_json
 
 __all__ = ["router"]
 
@@ -62,8 +62,8 @@ def list_vehicles(
     latest status of the alive ones (as of at most one status period ago:
     :mod:`trackside.services.fleet_list`)."""
 
-    def build() -> list[VehiclePublic]:
-        return public_fleet(bridge.fleet(), holds.holders(db), simulated)
+    def build() -> bytes:
+        return fleet_json(bridge.fleet(), holds.holders(db), simulated)
 
     cache: FleetListCache = request.app.state.fleet_list
     return Response(cache.get(holds.changes(), build), media_type="application/json")
