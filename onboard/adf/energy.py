@@ -150,7 +150,7 @@ def optimal_leg(
 
 def _grid_m(distance_m: float, step_m: float, interior_m: Sequence[float]) -> FloatArray:
     """Nodes over the leg [m] from its start: even steps of at most ``step_m`` between the
-    ends and the ``interior_m`` offsets, which are nodes; at least four intervals."""
+    ends and the ``interior_m`` offsets, which are nodes; without those, at least four."""
     bounds = sorted({0.0, distance_m, *(min(max(x, 0.0), distance_m) for x in interior_m)})
     if len(bounds) == 2:
         count = max(4, math.ceil(distance_m / step_m))
