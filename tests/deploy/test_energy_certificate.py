@@ -12,10 +12,10 @@ from deploy.scenario.energy_certificate import (
     driven_legs,
     reference_energy_j,
 )
-from onboard.adf.energy import optimal_leg, plan_traction_energy_j
+from onboard.adf.energy import OptimalLeg, optimal_leg, plan_traction_energy_j
 from onboard.adf.odp import plan_legs
 from onboard.plant import URV_PARAMETERS
-from onboard.plant.point_mass import with_model_mismatch
+from onboard.plant.point_mass import PointMassParameters, with_model_mismatch
 from protocol.units import J_PER_KWH
 from trackdb import TrackMap, load_seed_line
 
@@ -111,9 +111,18 @@ def test_the_ratio_is_driven_over_the_optimum_on_the_truth(ring: TrackMap) -> No
 
 
 def test_the_optimum_on_a_heavier_truth_takes_more(ring: TrackMap) -> None:
-    kwargs = {"start_chainage_m": START_M, "distance_m": LEG_M, "duration_s": LEG_S}
-    nominal = optimal_leg(ring, URV_PARAMETERS, cap_mps=CAP_MPS, **kwargs)
-    heavier = optimal_leg(ring, with_model_mismatch(URV_PARAMETERS), cap_mps=CAP_MPS, **kwargs)
+    def leg(model: PointMassParameters) -> OptimalLeg:
+        return optimal_leg(
+            ring,
+            model,
+            start_chainage_m=START_M,
+            distance_m=LEG_M,
+            duration_s=LEG_S,
+            cap_mps=CAP_MPS,
+        )
+
+    nominal = leg(URV_PARAMETERS)
+    heavier = leg(with_model_mismatch(URV_PARAMETERS))
     assert heavier.traction_energy_j > nominal.traction_energy_j
     # Run in its time, standstill to standstill, under the cap.
     speeds = heavier.speeds_mps

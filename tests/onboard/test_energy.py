@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from onboard.adf.energy import optimal_leg, plan_traction_energy_j
+from onboard.adf.energy import OptimalLeg, optimal_leg, plan_traction_energy_j
 from onboard.adf.odp import (
     SPEED_OVERREAD_SHARE,
     InfeasibleLegError,
@@ -71,9 +71,20 @@ def test_the_optimum_passes_a_passing_point_at_its_time() -> None:
     a node of the grid, between nodes 10 m apart), arrives on time, and costs more than the
     optimum free to pass it when it likes, which is earlier than asked here."""
     ring = TrackMap(load_seed_line("bologna-ring"))
-    leg = {"start_chainage_m": 3400.0, "distance_m": 2850.0, "duration_s": 430.0}
-    free = optimal_leg(ring, URV_PARAMETERS, cap_mps=CAP_MPS, **leg)
-    bound = optimal_leg(ring, URV_PARAMETERS, cap_mps=CAP_MPS, passing=[(1403.0, 210.0)], **leg)
+
+    def leg(passing: list[tuple[float, float]]) -> OptimalLeg:
+        return optimal_leg(
+            ring,
+            URV_PARAMETERS,
+            start_chainage_m=3400.0,
+            distance_m=2850.0,
+            duration_s=430.0,
+            cap_mps=CAP_MPS,
+            passing=passing,
+        )
+
+    free = leg([])
+    bound = leg([(1403.0, 210.0)])
     average = (bound.speeds_mps[:-1] + bound.speeds_mps[1:]) / 2
     times = np.concatenate([[0.0], np.cumsum(np.diff(bound.distances_m) / average)])
     node = int(np.argmin(np.abs(bound.distances_m - 1403.0)))
