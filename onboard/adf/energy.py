@@ -102,7 +102,6 @@ def optimal_leg(
     chainages = [start_chainage_m + float(x) for x in 0.5 * (nodes_m[1:] + nodes_m[:-1])]
     ceiling = _ceilings_mps(track_map, model, start_chainage_m, distance_m, cap_mps, nodes)
     track = [track_force_n(track_map, model, c) for c in chainages]
-    mass = model.mass_kg * (1.0 + model.rotating_mass_factor)
 
     opti = ca.Opti()
     v = opti.variable(count + 1)
@@ -116,19 +115,9 @@ def optimal_leg(
     opti.subject_to(opti.bounded(0, brake, model.max_brake_force_n))
     average = (v[:-1] + v[1:]) / 2
     opti.subject_to(average >= MIN_AVERAGE_SPEED_MPS)
-    resistance = (
-        model.davis_a_n + model.davis_b_n_per_mps * average + model.davis_c_n_per_mps2 * average**2
-    )
-    net = traction - brake - resistance - ca.DM(track)
-    opti.subject_to(mass * (v[1:] ** 2 - v[:-1] ** 2) / 2 == net * ds)
-    opti.subject_to(traction * average <= model.max_traction_power_w)
     deceleration = max_acceleration_mps2 if max_deceleration_mps2 is None else max_deceleration_mps2
-    opti.subject_to(opti.bounded(-deceleration, net / mass, max_acceleration_mps2))
-    dt = ds / average
-    opti.subject_to(ca.sum1(dt) == duration_s)
-    for offset_m, time_s in passing:
-        node = int(np.argmin(np.abs(nodes_m - offset_m)))
-        opti.subject_to(ca.sum1(dt[:node]) == time_s)
+    _dynamics(opti, model, (v, traction, brake), ds, track, (deceleration, max_acceleration_mps2))
+    _timing(opti, ds / average, nodes_m, duration_s, passing)
     opti.minimize(ca.dot(traction, ds) + 1e-6 * ca.dot(brake**2, ds))
     cruise = distance_m / duration_s * 1.3
     opti.set_initial(v, _initial_speeds(count, cruise, ceiling))
@@ -146,6 +135,43 @@ def optimal_leg(
         traction_energy_j=float(np.dot(forces, ds_m)),
         duration_s=duration_s,
     )
+
+
+def _dynamics(
+    opti: ca.Opti,
+    model: PointMassParameters,
+    variables: tuple[ca.MX, ca.MX, ca.MX],
+    ds: ca.DM,
+    track: list[float],
+    bounds_mps2: tuple[float, float],
+) -> None:
+    """Newton's law over each interval, the traction power and the acceleration's bounds
+    (``bounds_mps2``: the largest deceleration and acceleration)."""
+    v, traction, brake = variables
+    mass = model.mass_kg * (1.0 + model.rotating_mass_factor)
+    average = (v[:-1] + v[1:]) / 2
+    resistance = (
+        model.davis_a_n + model.davis_b_n_per_mps * average + model.davis_c_n_per_mps2 * average**2
+    )
+    net = traction - brake - resistance - ca.DM(track)
+    opti.subject_to(mass * (v[1:] ** 2 - v[:-1] ** 2) / 2 == net * ds)
+    opti.subject_to(traction * average <= model.max_traction_power_w)
+    deceleration, acceleration = bounds_mps2
+    opti.subject_to(opti.bounded(-deceleration, net / mass, acceleration))
+
+
+def _timing(
+    opti: ca.Opti,
+    dt: ca.MX,
+    nodes_m: FloatArray,
+    duration_s: float,
+    passing: Sequence[tuple[float, float]],
+) -> None:
+    """The leg's time, and the time to each passing point's node."""
+    opti.subject_to(ca.sum1(dt) == duration_s)
+    for offset_m, time_s in passing:
+        node = int(np.argmin(np.abs(nodes_m - offset_m)))
+        opti.subject_to(ca.sum1(dt[:node]) == time_s)
 
 
 def _grid_m(distance_m: float, step_m: float, interior_m: Sequence[float]) -> FloatArray:
