@@ -18,7 +18,7 @@ from tests.protocol.strategies import status_reports
 from trackside.api.schemas import VehiclePublic
 from trackside.bridge import VehicleSnapshot
 from trackside.main import SWITCH_INTERVAL_S
-from trackside.services.fleet_list import MAX_AGE_S, FleetListCache, fleet_json, public_fleet
+from trackside.services.fleet_list import MAX_AGE_S, FleetListCache, fleet_data, fleet_json
 
 _LIST = TypeAdapter(list[VehiclePublic])
 
@@ -59,8 +59,9 @@ def test_the_list_is_kept_one_period_and_built_again_when_a_hold_changes() -> No
 def test_the_list_s_json_is_the_public_models_json(
     reports: list[m.StatusReport | None], age_s: float | None, held: bool
 ) -> None:
-    """The list is made as JSON data straight from the reports (a third of the time for a
-    thousand vehicles): the same JSON as the public models', every report field included."""
+    """The list and the stream's frame are made as JSON data straight from the reports (a third
+    of the time for a thousand vehicles): the same JSON as the public models', every report
+    field included."""
     snapshots = [
         VehicleSnapshot(
             id=f"V{index}",
@@ -74,8 +75,19 @@ def test_the_list_s_json_is_the_public_models_json(
     until = datetime(2026, 12, 7, 5, 0, 0, 123456, tzinfo=UTC)
     holders = {"V0": ("driver", until)} if held else {}
     simulated = {"V1"}
-    expected = _LIST.dump_json(public_fleet(snapshots, holders, simulated))
-    assert json.loads(fleet_json(snapshots, holders, simulated)) == json.loads(expected)
+    models = [
+        VehiclePublic.from_snapshot(
+            snapshot,
+            holder=holders.get(snapshot.id, (None, None))[0],
+            hold_expires_at=holders.get(snapshot.id, (None, None))[1],
+            simulated_operator=snapshot.id in simulated,
+        )
+        for snapshot in snapshots
+    ]
+    expected = json.loads(_LIST.dump_json(models))
+    assert json.loads(fleet_json(snapshots, holders, simulated)) == expected
+    # The fleet stream's frame, sent as JSON text, carries the same data.
+    assert json.loads(json.dumps(fleet_data(snapshots, holders, simulated))) == expected
 
 
 def test_the_service_hands_the_interpreter_over_every_half_millisecond(client: TestClient) -> None:

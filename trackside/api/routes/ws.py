@@ -30,7 +30,7 @@ from trackside.bridge import ZenohBridge
 from trackside.errors import AuthenticationError
 from trackside.live import LiveHub
 from trackside.services import holds, users
-from trackside.services.fleet_list import public_fleet
+from trackside.services.fleet_list import fleet_data
 from trackside.simulated_operator import SimulatedOperatorThread
 
 __all__ = ["AUTH_DEADLINE_S", "POLICY_VIOLATION", "router"]
@@ -148,8 +148,7 @@ def _fleet_frame(app: Any, held: Holds) -> dict[str, Any]:
     bridge: ZenohBridge = app.state.bridge
     operator: SimulatedOperatorThread | None = app.state.simulated_operator
     simulated = frozenset() if operator is None else operator.operator.vehicles
-    vehicles = public_fleet(bridge.fleet(), held, simulated)
-    return {"type": "fleet", "vehicles": [public.model_dump(mode="json") for public in vehicles]}
+    return {"type": "fleet", "vehicles": fleet_data(bridge.fleet(), held, simulated)}
 
 
 @router.websocket("/fleet")
