@@ -110,19 +110,7 @@ class TopicMonitor:
         """Measured rate [Hz] over the last window; 0 with fewer than two arrivals."""
         current = self._clock() if now is None else now
         with self._lock:
-            arrivals = self._arrivals.get(key) or deque()
-            # In the clock's order, and :meth:`record` keeps no more than a window behind the
-            # last: the few older than the window are the first ones.
-            stale = 0
-            for stamp in arrivals:
-                if current - stamp <= RATE_WINDOW_S:
-                    break
-                stale += 1
-            count = len(arrivals) - stale
-            if count < 2:
-                return 0.0
-            span = arrivals[-1] - arrivals[stale]
-        return (count - 1) / span if span > 0 else 0.0
+            return _rate_hz(self._arrivals.get(key) or deque(), current)
 
     def rate_ok(self, key: str, now: float | None = None) -> bool:
         if not self.alive(key, now):
@@ -131,6 +119,43 @@ class TopicMonitor:
             return True
         measured = self.rate_hz(key, now)
         return abs(measured - self._rate_hz) <= RATE_TOLERANCE * self._rate_hz
+
+    def health(self, now: float | None = None) -> dict[str, tuple[float, bool]]:
+        """Every key's last arrival and :meth:`rate_ok`, at one instant and under one lock:
+        what a list of a thousand keys asks, without a thousand rounds of the lock."""
+        current = self._clock() if now is None else now
+        with self._lock:
+            return {
+                key: (arrivals[-1], self._ok(arrivals, current))
+                for key, arrivals in self._arrivals.items()
+                if arrivals
+            }
+
+    def _ok(self, arrivals: deque[float], current: float) -> bool:
+        """:meth:`rate_ok` of a key's (non-empty) arrivals, the lock held."""
+        if self._rate_hz is None:
+            return True
+        if current - arrivals[-1] > ALIVE_PERIODS / self._rate_hz:
+            return False
+        measured = _rate_hz(arrivals, current)
+        return abs(measured - self._rate_hz) <= RATE_TOLERANCE * self._rate_hz
+
+
+def _rate_hz(arrivals: deque[float], current: float) -> float:
+    """The rate [Hz] of ``arrivals`` over the window before ``current``; 0 with fewer than two.
+
+    In the clock's order, and :meth:`TopicMonitor.record` keeps no more than a window behind
+    the last: the few older than the window are the first ones."""
+    stale = 0
+    for stamp in arrivals:
+        if current - stamp <= RATE_WINDOW_S:
+            break
+        stale += 1
+    count = len(arrivals) - stale
+    if count < 2:
+        return 0.0
+    span = arrivals[-1] - arrivals[stale]
+    return (count - 1) / span if span > 0 else 0.0
 
 
 class TypedPublisher(Generic[T]):

@@ -1,11 +1,12 @@
 """``ato bench trackside``: the service under a simulated fleet and REST load, on loopback.
 
-Three processes: this one runs the Zenoh router and ATO-TS (uvicorn, SQLite in a temporary
-directory); a fleet process publishes the status of ``vehicles`` simulated vehicles at 5 Hz and
-accepts their commands; a load process runs paced REST requests (reads, history, commands of a
-driver holding every vehicle) and per-vehicle WebSocket clients. Each status carries its wall
-send time in ``sim_time_s``, so the WebSocket clients measure status-to-browser latency across
-processes on one clock. Prints REST p50/p99 and status-to-browser p50/p99 beside the targets.
+Four processes, as ``ato up`` lays a deployment out: a Zenoh router of its own; this one runs
+ATO-TS (uvicorn, SQLite in a temporary directory); a fleet process publishes the status of
+``vehicles`` simulated vehicles at 5 Hz and accepts their commands; a load process runs paced
+REST requests (reads, history, commands of a driver holding every vehicle) and per-vehicle
+WebSocket clients. Each status carries its wall send time in ``sim_time_s``, so the WebSocket
+clients measure status-to-browser latency across processes on one clock. Prints REST p50/p99 and
+status-to-browser p50/p99 beside the targets.
 
 The simulated vehicles open no session with the trackside, so its commands go out unsealed, and
 they accept them all: a real onboard would refuse them (issue 20). What a command's figure
@@ -44,7 +45,13 @@ from protocol.router import run_router
 if TYPE_CHECKING:
     import uvicorn
 
-__all__ = ["BenchFigures", "bench_trackside", "fleet_process", "load_process"]
+__all__ = [
+    "BenchFigures",
+    "bench_trackside",
+    "fleet_process",
+    "load_process",
+    "router_process",
+]
 
 REST_P99_TARGET_MS = 50.0
 LIVE_P99_TARGET_MS = 100.0
@@ -261,39 +268,58 @@ def run_bench(
     """Run the three processes and return the figures [ms]."""
     endpoint = loopback_endpoint()
     stop = threading.Event()
-    router = _start_router(endpoint, stop)
-    with tempfile.TemporaryDirectory() as scratch:
-        server, serving, port = _start_service(Path(scratch), endpoint, stop)
-        figures = _run_fleet_and_load(
-            endpoint,
-            f"http://127.0.0.1:{port}",
-            vehicles=vehicles,
-            seconds=seconds,
-            rate_hz=rate_hz,
-            sockets=sockets,
-            warmup_s=warmup_s,
-            stop=stop,
-        )
-        server.should_exit = True
-        serving.join(10.0)
-    stop.set()
-    router.join(10.0)
+    router, router_stop = _start_router(endpoint)
+    try:
+        with tempfile.TemporaryDirectory() as scratch:
+            server, serving, port = _start_service(Path(scratch), endpoint, stop)
+            figures = _run_fleet_and_load(
+                endpoint,
+                f"http://127.0.0.1:{port}",
+                vehicles=vehicles,
+                seconds=seconds,
+                rate_hz=rate_hz,
+                sockets=sockets,
+                warmup_s=warmup_s,
+                stop=stop,
+            )
+            server.should_exit = True
+            serving.join(10.0)
+    finally:
+        stop.set()
+        router_stop.set()
+        router.join(10.0)
     return _bench_figures(figures)
 
 
-def _start_router(endpoint: str, stop: threading.Event) -> threading.Thread:
-    """The Zenoh router on ``endpoint`` in a thread until ``stop`` is set, once it listens."""
-    router_ready = threading.Event()
+def router_process(endpoint: str, ready: Any, stop: Any) -> None:
+    """A Zenoh router on ``endpoint``, in a process of its own as ``ato up`` runs it: ``ready``
+    is set once it listens, it closes when ``stop`` is set."""
+    closing = threading.Event()
+    listening = threading.Event()
     router = threading.Thread(
         target=run_router,
-        args=(stop,),
+        args=(closing,),
         daemon=True,
-        kwargs={"listen": [endpoint], "ready": router_ready},
+        kwargs={"listen": [endpoint], "ready": listening},
     )
     router.start()
-    if not router_ready.wait(10.0):
+    if listening.wait(10.0):
+        ready.set()
+    stop.wait()
+    closing.set()
+    router.join(10.0)
+
+
+def _start_router(endpoint: str) -> tuple[Any, Any]:
+    """:func:`router_process` started, once it listens: (the process, its stop event)."""
+    spawn = multiprocessing.get_context("spawn")
+    ready, stop = spawn.Event(), spawn.Event()
+    router = spawn.Process(target=router_process, args=(endpoint, ready, stop), daemon=True)
+    router.start()
+    if not ready.wait(30.0):
+        router.terminate()
         raise RuntimeError("the Zenoh router did not start")
-    return router
+    return router, stop
 
 
 def _start_service(

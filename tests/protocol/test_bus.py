@@ -6,6 +6,8 @@ import threading
 
 import pytest
 import zenoh
+from hypothesis import given
+from hypothesis import strategies as st
 
 from protocol import (
     LivelinessWatcher,
@@ -276,3 +278,27 @@ def test_monitor_flags_a_slow_publisher() -> None:
     clock.now -= 0.3
     assert monitor.alive("k")
     assert not monitor.rate_ok("k")
+
+
+@given(
+    gaps=st.lists(st.lists(st.floats(0.05, 1.5), min_size=1, max_size=40), min_size=1, max_size=6),
+    quiet_s=st.floats(0.0, 6.0),
+    rate_hz=st.sampled_from([None, 5.0]),
+)
+def test_the_monitor_s_health_is_each_key_s_last_arrival_and_rate(
+    gaps: list[list[float]], quiet_s: float, rate_hz: float | None
+) -> None:
+    """The fleet's list reads every key's health in one pass: the same as asking key by key."""
+    clock = FakeClock()
+    monitor = TopicMonitor(rate_hz, clock)
+    for index, key_gaps in enumerate(gaps):
+        clock.now = 0.0
+        for gap in key_gaps:
+            clock.now += gap
+            monitor.record(f"k{index}")
+    now = max(sum(key_gaps) for key_gaps in gaps) + quiet_s
+    health = monitor.health(now)
+    assert set(health) == {f"k{index}" for index in range(len(gaps))}
+    for key, (last, ok) in health.items():
+        assert last == monitor.last_seen(key)
+        assert ok == monitor.rate_ok(key, now)

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import sys
+import time
+from collections.abc import Callable
 from datetime import UTC, datetime
 
 import pytest
@@ -18,7 +20,13 @@ from tests.protocol.strategies import status_reports
 from trackside.api.schemas import VehiclePublic
 from trackside.bridge import VehicleSnapshot
 from trackside.main import SWITCH_INTERVAL_S
-from trackside.services.fleet_list import MAX_AGE_S, FleetListCache, fleet_data, fleet_json
+from trackside.services.fleet_list import (
+    MAX_AGE_S,
+    STALE_LIMIT_S,
+    FleetListCache,
+    fleet_data,
+    fleet_json,
+)
 
 _LIST = TypeAdapter(list[VehiclePublic])
 
@@ -31,24 +39,73 @@ class Clock:
         return self.now_s
 
 
-def test_the_list_is_kept_one_period_and_built_again_when_a_hold_changes() -> None:
-    clock = Clock()
-    cache = FleetListCache(clock)
-    builds: list[str] = []
+def _builder(builds: list[str]) -> Callable[[], bytes]:
+    """A list of one vehicle whose holder names the build: driver1, driver2…"""
 
     def build() -> bytes:
         builds.append("URV1")
         vehicle = VehiclePublic(id="URV1", alive=True, status=None, holder=f"driver{len(builds)}")
         return _LIST.dump_json([vehicle])
 
-    first = json.loads(cache.get(0, build))
-    assert first[0]["holder"] == "driver1"
+    return build
+
+
+def _holder(body: bytes) -> str:
+    return str(json.loads(body)[0]["holder"])
+
+
+def _wait_for(builds: list[str], count: int) -> None:
+    deadline = time.monotonic() + 10.0
+    while len(builds) < count and time.monotonic() < deadline:
+        time.sleep(0.01)
+    time.sleep(0.05)  # the refresh stores its list after its build returns
+
+
+def test_the_list_is_kept_one_period_and_built_again_when_a_hold_changes() -> None:
+    clock = Clock()
+    cache = FleetListCache(clock)
+    builds: list[str] = []
+    build = _builder(builds)
+
+    assert _holder(cache.get(0, build)) == "driver1"
     clock.now_s += MAX_AGE_S / 2
-    assert json.loads(cache.get(0, build)) == first  # kept
-    assert json.loads(cache.get(1, build))[0]["holder"] == "driver2"  # a hold changed
+    assert _holder(cache.get(0, build)) == "driver1"  # kept
+    assert _holder(cache.get(1, build)) == "driver2"  # a hold changed: built for the request
+    assert len(builds) == 2
+
+
+def test_an_old_list_is_served_while_a_new_one_is_built_away_from_the_request() -> None:
+    clock = Clock()
+    cache = FleetListCache(clock)
+    builds: list[str] = []
+    build = _builder(builds)
+    cache.get(0, build)
     clock.now_s += MAX_AGE_S
-    assert json.loads(cache.get(1, build))[0]["holder"] == "driver3"  # a period old
+    assert _holder(cache.get(0, build)) == "driver1"  # served at once, a build started
+    _wait_for(builds, 2)
+    assert _holder(cache.get(0, build)) == "driver2"
+    clock.now_s += STALE_LIMIT_S  # a quiet spell: too old to serve, built for the request
+    assert _holder(cache.get(0, build)) == "driver3"
     assert len(builds) == 3
+
+
+def test_a_failed_build_away_from_the_request_leaves_the_last_list_served() -> None:
+    clock = Clock()
+    cache = FleetListCache(clock)
+    builds: list[str] = []
+    cache.get(0, _builder(builds))
+    clock.now_s += MAX_AGE_S
+
+    def broken() -> bytes:
+        builds.append("broken")
+        raise RuntimeError("database gone")
+
+    assert _holder(cache.get(0, broken)) == "driver1"
+    _wait_for(builds, 2)
+    assert cache.failed_refreshes == 1
+    assert _holder(cache.get(0, _builder(builds))) == "driver1"  # served, and tried again
+    _wait_for(builds, 3)
+    assert _holder(cache.get(0, _builder(builds))) == "driver3"
 
 
 @given(

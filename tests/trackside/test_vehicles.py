@@ -86,6 +86,41 @@ def test_status_under_another_vehicles_key_is_not_shown(
 
 
 @pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
+def test_the_fleet_read_in_one_pass_is_each_vehicle_s_snapshot(
+    client: TestClient,
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    """``ZenohBridge.fleet`` reads every vehicle at one instant under one lock each: the same
+    as each vehicle's own snapshot but for the age, which grows between the two reads."""
+    _, onboard = zenoh_pair
+    bridge = client.app.state.bridge  # type: ignore[attr-defined]
+    tokens = [declare_liveliness(onboard, f"ato/alive/ob/URV{n}") for n in (1, 2, 3)]
+    assert wait_for(lambda: len(bridge.vehicle_ids()) == 3)
+    with (
+        TypedPublisher(onboard, STATUS, vehicle="URV1") as first,
+        TypedPublisher(onboard, STATUS, vehicle="URV2") as second,
+    ):
+        for _ in range(3):
+            first.put(_status("URV1", 5.0))
+            second.put(_status("IMPOSTOR", 6.0))  # not shown under URV2
+        assert wait_for(lambda: bridge.status_stats.received >= 6)
+    tokens[2].undeclare()
+    assert wait_for(lambda: not bridge.snapshot("URV3").alive)
+
+    def without_age(snapshot: VehicleSnapshot) -> tuple[object, ...]:
+        return (snapshot.id, snapshot.alive, snapshot.status, snapshot.status_rate_ok)
+
+    fleet = bridge.fleet()
+    assert [snapshot.id for snapshot in fleet] == ["URV1", "URV2", "URV3"]
+    assert [without_age(s) for s in fleet] == [without_age(bridge.snapshot(s.id)) for s in fleet]
+    assert fleet[0].status is not None
+    assert fleet[0].status_age_s is not None
+    assert (fleet[1].status, fleet[2].alive) == (None, False)
+    for token in tokens[:2]:
+        token.undeclare()
+
+
+@pytest.mark.parametrize("database_url", ["sqlite"], indirect=True)
 def test_unknown_vehicle_is_404(client: TestClient, admin_headers: dict[str, str]) -> None:
     assert client.get("/api/v1/vehicles/NOPE", headers=admin_headers).status_code == 404
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, HTTPException, Path, Query, Request, Response, status
+from sqlalchemy.orm import Session, sessionmaker
 
 from protocol import messages as m
 from protocol.units import MPS_PER_KMH
@@ -54,16 +55,17 @@ COMMAND_ERRORS: dict[int | str, dict[str, Any]] = {
 def list_vehicles(
     request: Request,
     bridge: BridgeDep,
-    db: SessionDep,
     simulated: SimulatedDep,
     _user: ObserverUser,
 ) -> Response:
     """List every vehicle seen, whether alive, its holder and the end of their lease, and the
-    latest status of the alive ones (as of at most one status period ago:
+    latest status of the alive ones (as of at most one status period and one build ago:
     :mod:`trackside.services.fleet_list`)."""
+    factory: sessionmaker[Session] = request.app.state.session_factory
 
-    def build() -> bytes:
-        return fleet_json(bridge.fleet(), holds.holders(db), simulated)
+    def build() -> bytes:  # on its own session: it may run after the request
+        with factory() as db:
+            return fleet_json(bridge.fleet(), holds.holders(db), simulated)
 
     cache: FleetListCache = request.app.state.fleet_list
     return Response(cache.get(holds.changes(), build), media_type="application/json")
