@@ -116,6 +116,8 @@ class Topic(Generic[T]):
     _keys: dict[tuple[tuple[str, str], ...], str] = field(init=False, repr=False, compare=False)
     """Concrete keys made so far (a trackside makes one per vehicle and topic, thousands of
     times a second with a large fleet)."""
+    _parsed: dict[str, dict[str, str]] = field(init=False, repr=False, compare=False)
+    """Concrete keys parsed so far (a trackside parses each status report's key)."""
 
     def __post_init__(self) -> None:
         if (self.delivery is Delivery.QUERY) != isinstance(self, QueryTopic):
@@ -126,6 +128,7 @@ class Topic(Generic[T]):
         object.__setattr__(self, "_pattern", re.compile(f"^{regex}$"))
         object.__setattr__(self, "_chunk_names", tuple(_PLACEHOLDER.findall(self.key_template)))
         object.__setattr__(self, "_keys", {})
+        object.__setattr__(self, "_parsed", {})
 
     @property
     def chunk_names(self) -> tuple[str, ...]:
@@ -163,10 +166,16 @@ class Topic(Generic[T]):
 
     def parse(self, key: str) -> dict[str, str]:
         """The chunk values of a concrete key of this topic."""
-        match = self._pattern.match(key)
-        if match is None:
-            raise KeyExpressionError(f"{key!r} is not a {self.name} key ({self.key_template})")
-        return dict(zip(self.chunk_names, match.groups(), strict=True))
+        chunks = self._parsed.get(key)
+        if chunks is None:
+            match = self._pattern.match(key)
+            if match is None:
+                raise KeyExpressionError(f"{key!r} is not a {self.name} key ({self.key_template})")
+            chunks = dict(zip(self.chunk_names, match.groups(), strict=True))
+            if len(self._parsed) >= MAX_CACHED_KEYS:
+                self._parsed.clear()
+            self._parsed[key] = chunks
+        return dict(chunks)
 
     def encode(self, message: T) -> bytes:
         return self._adapter.dump_json(message)

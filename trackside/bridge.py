@@ -87,7 +87,10 @@ class ZenohBridge:
         line_document: LineDocumentLookup | None = None,
         clock: Callable[[], float] = time.monotonic,
         sessions: SessionManager | None = None,
+        status_drain_period_s: float | None = None,
     ) -> None:
+        """``status_drain_period_s``: the status reports taken in batches, at most one a period
+        (:class:`~protocol.bus.TypedSubscriber`); ``None``, each on arrival (lockstep runs)."""
         self._clock = clock
         self._zenoh = session
         self.sessions = sessions or SessionManager(trackside_id=instance_id)
@@ -104,7 +107,13 @@ class ZenohBridge:
         self._status_observers: list[StatusObserver] = []
         self._report_supervisor: StatusObserver | None = None
         self._event_observers: list[EventObserver] = []
-        self._status = TypedSubscriber(session, STATUS, on_message=self._on_status, clock=clock)
+        self._status = TypedSubscriber(
+            session,
+            STATUS,
+            on_message=self._on_status,
+            clock=clock,
+            drain_period_s=status_drain_period_s,
+        )
         self._liveliness = LivelinessWatcher(
             session, ALIVE_ONBOARD.format(vehicle="*"), self._on_liveliness
         )

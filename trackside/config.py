@@ -49,6 +49,14 @@ class Settings(BaseSettings):
     )
     webui_dir: Path = DEFAULT_WEBUI_DIR
     fleet_push_period_s: float = Field(default=0.2, gt=0, description="WebSocket push [s]")
+    status_intake_period_s: float = Field(
+        default=0.005,
+        ge=0,
+        le=0.05,
+        description="The vehicles' status reports are taken in batches, at most one batch this "
+        "often (each report waits at most this long; a thousand vehicles send 5 000 a second); "
+        "0: each on arrival [s]",
+    )
     seed_lines: bool = Field(
         default=True,
         description="At start-up, import each shipped seed line whose id is not stored yet",

@@ -105,6 +105,61 @@ def test_bad_payloads_are_counted_not_raised(
         assert subscriber.stats.last_error is not None
 
 
+def test_a_drained_subscriber_takes_every_sample_in_batches_on_its_own_thread(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    trackside, onboard = zenoh_pair
+    received: list[tuple[int, str]] = []
+    period_s = 0.05
+
+    def on_message(_key: str, report: m.StatusReport) -> None:
+        received.append((report.seq, threading.current_thread().name))
+
+    subscriber = TypedSubscriber(trackside, STATUS, on_message=on_message, drain_period_s=period_s)
+    with TypedPublisher(onboard, STATUS, vehicle="URV1") as publisher:
+
+        def first_received() -> bool:
+            publisher.put(_status(10**6))
+            return bool(received)
+
+        assert wait_for(first_received)
+        received.clear()
+        for seq in range(300):
+            publisher.put(_status(seq))
+        assert wait_for(lambda: len([s for s, _ in received if s < 10**6]) == 300)
+        onboard.put("ato/ob/URV1/status", b"garbage")
+        assert wait_for(lambda: subscriber.stats.bad_payloads == 1)
+    subscriber.close()
+    assert [s for s, _ in received if s < 10**6] == list(range(300))
+    assert {name for _, name in received} == {"status-intake"}
+    assert subscriber.stats.queue_overflows == 0
+    drainer = subscriber._drainer
+    assert drainer is not None
+    assert not drainer.is_alive()  # the ring closed with the subscriber
+    latest = subscriber.latest("ato/ob/URV1/status")
+    assert latest is not None
+    assert latest.seq == 299
+
+
+def test_a_drained_subscriber_counts_a_ring_overrun(
+    zenoh_pair: tuple[zenoh.Session, zenoh.Session],
+) -> None:
+    """More samples in a period than the ring holds: the oldest are lost, and counted."""
+    trackside, onboard = zenoh_pair
+    subscriber = TypedSubscriber(trackside, STATUS, drain_period_s=0.5, ring_capacity=8)
+    with subscriber, TypedPublisher(onboard, STATUS, vehicle="URV1") as publisher:
+        sent = [0]
+
+        def overrun() -> bool:
+            for seq in range(200):
+                publisher.put(_status(seq))
+            sent[0] += 200
+            return subscriber.stats.queue_overflows > 0
+
+        assert wait_for(overrun, timeout_s=10.0)
+        assert subscriber.stats.received < sent[0]  # lost in the ring, not queued without end
+
+
 def test_query_reply(zenoh_pair: tuple[zenoh.Session, zenoh.Session]) -> None:
     trackside, onboard = zenoh_pair
 

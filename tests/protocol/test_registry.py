@@ -38,6 +38,16 @@ def test_key_wildcard_and_parse() -> None:
     assert SESSION.parse("ato/ts/session/URV1") == {"vehicle": "URV1"}
 
 
+def test_a_parsed_key_is_cached_and_each_caller_gets_its_own_chunks() -> None:
+    first = STATUS.parse("ato/ob/URV-7/status")
+    first["vehicle"] = "changed by its caller"
+    assert STATUS.parse("ato/ob/URV-7/status") == {"vehicle": "URV-7"}
+    with pytest.raises(KeyExpressionError):  # a refused key is refused again, not cached
+        STATUS.parse("ato/ob/a/b/status")
+    with pytest.raises(KeyExpressionError):
+        STATUS.parse("ato/ob/a/b/status")
+
+
 @pytest.mark.parametrize(
     "key", ["ato/ob/URV1/event", "ato/ob/a/b/status", "ato/ob//status", "xato/ob/URV1/status"]
 )

@@ -3,6 +3,7 @@ changes (``trackside.services.fleet_list``)."""
 
 from __future__ import annotations
 
+import gc
 import json
 import sys
 import time
@@ -19,7 +20,7 @@ from protocol import messages as m
 from tests.protocol.strategies import status_reports
 from trackside.api.schemas import VehiclePublic
 from trackside.bridge import VehicleSnapshot
-from trackside.main import SWITCH_INTERVAL_S
+from trackside.main import GC_THRESHOLDS, SWITCH_INTERVAL_S
 from trackside.services.fleet_list import (
     MAX_AGE_S,
     STALE_LIMIT_S,
@@ -152,3 +153,12 @@ def test_the_service_hands_the_interpreter_over_every_half_millisecond(client: T
     validated: the service shortens the switch interval from Python's 5 ms while it runs."""
     assert client.get("/healthz").status_code == 200
     assert sys.getswitchinterval() == pytest.approx(SWITCH_INTERVAL_S)
+
+
+def test_the_service_collects_its_young_objects_less_often_while_it_runs(
+    client: TestClient,
+) -> None:
+    """Each young collection stops every thread: the service makes them rarer while it runs."""
+    assert client.get("/healthz").status_code == 200
+    assert gc.get_threshold() == GC_THRESHOLDS
+    assert GC_THRESHOLDS[0] > 700  # Python's default

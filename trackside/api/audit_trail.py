@@ -19,11 +19,13 @@ does not validate: 422) change nothing and are not audited; every login is, by i
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator
+from collections.abc import AsyncIterator, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
+import anyio
+import anyio.to_thread
 from fastapi import HTTPException, Request, status
 from sqlalchemy.orm import Session, sessionmaker
 
@@ -126,9 +128,13 @@ class AuditTrail:
             self.fallback.offer(entry)
 
 
-def audit_trail(request: Request) -> Iterator[AuditTrail]:
+async def audit_trail(request: Request) -> AsyncIterator[AuditTrail]:
     """The request's audit trail (a dependency of ``get_db``, so closed after its session),
-    closed with the request's outcome."""
+    closed with the request's outcome.
+
+    Made on the event loop (it does no I/O): a request that audits nothing costs no trip to the
+    thread pool; one that does writes its entries there, shielded from the request's
+    cancellation so that an entry is never lost to a client that went away."""
     recorder = getattr(request.app.state, "recorder", None)
     trail = AuditTrail(
         request.app.state.session_factory, None if recorder is None else recorder.audit
@@ -136,6 +142,12 @@ def audit_trail(request: Request) -> Iterator[AuditTrail]:
     try:
         yield trail
     except BaseException as exc:
-        trail.close(exc)
+        await _close(trail, exc)
         raise
-    trail.close(None)
+    await _close(trail, None)
+
+
+async def _close(trail: AuditTrail, error: BaseException | None) -> None:
+    if trail.notes:
+        with anyio.CancelScope(shield=True):
+            await anyio.to_thread.run_sync(trail.close, error)

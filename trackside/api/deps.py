@@ -6,9 +6,11 @@ exception handlers answer it (401, 403), as for the routes.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Coroutine, Iterator
+from collections.abc import AsyncIterator, Callable, Coroutine
 from typing import Annotated, Any
 
+import anyio
+import anyio.to_thread
 from fastapi import Depends, Request
 from fastapi.security import OAuth2PasswordBearer
 from sqlalchemy.orm import Session, sessionmaker
@@ -43,14 +45,37 @@ AuditDep = Annotated[AuditTrail, Depends(audit_trail, scope="function")]
 """The request's audit trail; closed (its entries written) after the request's transaction."""
 
 
-def get_db(request: Request, _trail: AuditDep) -> Iterator[Session]:
+async def get_db(request: Request, _trail: AuditDep) -> AsyncIterator[Session]:
     """One transaction per request, committed when the route function returns (``scope=
     "function"`` below), so before the answer leaves: a client that sends its next request as
     soon as it reads the answer (the console right after sign-in) sees what was written. It
-    depends on the audit trail so that the trail is closed after the transaction has ended."""
+    depends on the audit trail so that the trail is closed after the transaction has ended.
+
+    The session is made on the event loop (its connection is taken at its first statement, in
+    the route's thread) and ended in the thread pool, shielded from the request's cancellation:
+    one trip to the pool for the commit, not one more for the opening."""
     factory: sessionmaker[Session] = request.app.state.session_factory
-    with factory() as db, db.begin():
+    db = factory()
+    db.begin()
+    try:
         yield db
+    except BaseException:
+        with anyio.CancelScope(shield=True):
+            await anyio.to_thread.run_sync(_end, db, False)
+        raise
+    with anyio.CancelScope(shield=True):
+        await anyio.to_thread.run_sync(_end, db, True)
+
+
+def _end(db: Session, commit: bool) -> None:
+    """Commit (or roll back) the request's transaction and give its connection back."""
+    try:
+        if commit:
+            db.commit()
+        else:
+            db.rollback()
+    finally:
+        db.close()
 
 
 async def get_settings(request: Request) -> Settings:

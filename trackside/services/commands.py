@@ -1,12 +1,13 @@
 """Commands to a vehicle on behalf of a user: checked, sent over Zenoh, answered, audited.
 
-Each attempt leaves two audit entries, each written in a transaction of its own, that share a
-``request_id`` in their request (for a command, also its ``command_id``, the id the vehicle
-acknowledges): the intent (``requested``), written before anything is checked or sent, so no
-vehicle is asked anything that is not in the log first (if the intent cannot be written, the
-command is not sent); then the outcome, whatever became of it: accepted or refused by the
-vehicle, refused by the trackside (vehicle not alive, not held by the user), timed out, or
-failed on the link.
+Each attempt leaves two audit entries that share a ``request_id`` in their request (for a
+command, also its ``command_id``, the id the vehicle acknowledges): the intent (``requested``),
+written before anything is sent, so no vehicle is asked anything that is not in the log first
+(if the intent cannot be written, the command is not sent); then the outcome, whatever became
+of it: accepted or refused by the vehicle, refused by the trackside (vehicle not alive, not held
+by the user), timed out, or failed on the link. A command's intent is written in the
+transaction that checks the hold and renews its lease; a journey's, in one of its own before
+anything is checked.
 """
 
 from __future__ import annotations
@@ -32,8 +33,9 @@ from trackside.errors import (
     VehicleTimeoutError,
 )
 from trackside.journey_planner import Booking, JourneyPlanner, PlannedJourney
-from trackside.models import User
+from trackside.models import AuditEntry, User
 from trackside.services import audit, holds
+from trackside.services.audit_chain import append, chained
 from trackside.services.journeys import (
     StoredJourney,
     create_journey,
@@ -107,6 +109,44 @@ class CommandService:
         with self._factory() as db, db.begin():  # the holder's command renews the lease
             holds.check_holder(db, vehicle_id, user, lease_s=self.hold_lease_s)
 
+    def _request(
+        self,
+        user: User,
+        vehicle_id: str,
+        action: str,
+        request: dict[str, Any],
+        *,
+        needs_hold: bool,
+    ) -> None:
+        """Audit a command's intent and check it (the vehicle alive, held by ``user``, the
+        lease renewed) in one transaction: one write under the audit chain's lock, not two. A
+        refused command is audited as its intent followed by the refusal, as if checked after
+        the intent was written; a command whose intent cannot be written is not sent."""
+
+        def entry(result: audit.AuditResult, detail: str | None = None) -> AuditEntry:
+            return audit.audit_entry(
+                user=user.username,
+                vehicle_id=vehicle_id,
+                action=action,
+                request=request,
+                result=result,
+                detail=detail,
+            )
+
+        try:
+            snapshot = self._bridge.snapshot(vehicle_id)
+            if snapshot is None or not snapshot.alive:
+                raise NotFoundError(f"{vehicle_id} is not alive")
+            with chained(self._factory) as db:
+                append(db, entry(audit.AuditResult.REQUESTED))
+                if needs_hold:
+                    holds.check_holder(db, vehicle_id, user, lease_s=self.hold_lease_s)
+        except (NotFoundError, ConflictError) as exc:
+            with chained(self._factory) as db:
+                append(db, entry(audit.AuditResult.REQUESTED))
+                append(db, entry(audit.AuditResult.REFUSED, str(exc)))
+            raise
+
     def send(self, user: User, vehicle_id: str, body: m.CommandBody) -> m.CommandAck:
         """Send ``body`` to the vehicle and return its acknowledgement (accepted or refused).
 
@@ -119,11 +159,10 @@ class CommandService:
             "request_id": command_id,
             "command_id": command_id,
         }
-        self._audit(user, vehicle_id, action, request, audit.AuditResult.REQUESTED)
+        # The emergency brake is any driver's to ask for, whoever holds the vehicle.
+        braking = isinstance(body, m.EmergencyBrakeCommand)
+        self._request(user, vehicle_id, action, request, needs_hold=not braking)
         try:
-            # The emergency brake is any driver's to ask for, whoever holds the vehicle.
-            braking = isinstance(body, m.EmergencyBrakeCommand)
-            self._check(user, vehicle_id, needs_hold=not braking)
             command = m.Command(
                 vehicle_id=vehicle_id,
                 command_id=command_id,
