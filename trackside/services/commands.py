@@ -90,20 +90,15 @@ class CommandService:
         result: audit.AuditResult,
         detail: str | None = None,
     ) -> None:
-        entry = audit.audit_entry(
-            user=user.username,
-            vehicle_id=vehicle_id,
-            action=action,
-            request=request,
-            result=result,
-            detail=detail,
-        )
-        audit.record(self._factory, entry)
+        audit.record(self._factory, _entry(user, vehicle_id, action, request, result, detail))
 
-    def _check(self, user: User, vehicle_id: str, *, needs_hold: bool = True) -> None:
+    def _alive(self, vehicle_id: str) -> None:
         snapshot = self._bridge.snapshot(vehicle_id)
         if snapshot is None or not snapshot.alive:
             raise NotFoundError(f"{vehicle_id} is not alive")
+
+    def _check(self, user: User, vehicle_id: str, *, needs_hold: bool = True) -> None:
+        self._alive(vehicle_id)
         if not needs_hold:
             return
         with self._factory() as db, db.begin():  # the holder's command renews the lease
@@ -124,19 +119,10 @@ class CommandService:
         the intent was written; a command whose intent cannot be written is not sent."""
 
         def entry(result: audit.AuditResult, detail: str | None = None) -> AuditEntry:
-            return audit.audit_entry(
-                user=user.username,
-                vehicle_id=vehicle_id,
-                action=action,
-                request=request,
-                result=result,
-                detail=detail,
-            )
+            return _entry(user, vehicle_id, action, request, result, detail)
 
         try:
-            snapshot = self._bridge.snapshot(vehicle_id)
-            if snapshot is None or not snapshot.alive:
-                raise NotFoundError(f"{vehicle_id} is not alive")
+            self._alive(vehicle_id)
             with chained(self._factory) as db:
                 append(db, entry(audit.AuditResult.REQUESTED))
                 if needs_hold:
@@ -307,3 +293,21 @@ class CommandService:
                 )
                 check, line_version = validate_journey(db, stored.journey)
         return stored, check, line_version, planned
+
+
+def _entry(
+    user: User,
+    vehicle_id: str,
+    action: str,
+    request: dict[str, Any],
+    result: audit.AuditResult,
+    detail: str | None,
+) -> AuditEntry:
+    return audit.audit_entry(
+        user=user.username,
+        vehicle_id=vehicle_id,
+        action=action,
+        request=request,
+        result=result,
+        detail=detail,
+    )
