@@ -87,9 +87,9 @@ class ZenohBridge:
         line_document: LineDocumentLookup | None = None,
         clock: Callable[[], float] = time.monotonic,
         sessions: SessionManager | None = None,
-        status_drain_period_s: float | None = None,
+        status_intake_s: float | None = None,
     ) -> None:
-        """``status_drain_period_s``: the status reports taken in batches, at most one a period
+        """``status_intake_s``: the status reports taken in batches, at most one a period
         (:class:`~protocol.bus.TypedSubscriber`); ``None``, each on arrival (lockstep runs)."""
         self._clock = clock
         self._zenoh = session
@@ -108,11 +108,7 @@ class ZenohBridge:
         self._report_supervisor: StatusObserver | None = None
         self._event_observers: list[EventObserver] = []
         self._status = TypedSubscriber(
-            session,
-            STATUS,
-            on_message=self._on_status,
-            clock=clock,
-            drain_period_s=status_drain_period_s,
+            session, STATUS, on_message=self._on_status, clock=clock, drain_period_s=status_intake_s
         )
         self._liveliness = LivelinessWatcher(
             session, ALIVE_ONBOARD.format(vehicle="*"), self._on_liveliness

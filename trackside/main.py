@@ -248,7 +248,7 @@ def _start_bridge(
         instance_id=settings.instance_id,
         line_version=lambda line_id: _line_version(factory, line_id),
         line_document=lambda line_id: _line_document(factory, line_id),
-        status_drain_period_s=settings.status_intake_period_s or None,
+        status_intake_s=settings.status_intake_period_s or None,
     )
     app.state.bridge = bridge
     app.state.fleet_list = FleetListCache()
