@@ -57,14 +57,13 @@ async def get_db(request: Request, _trail: AuditDep) -> AsyncIterator[Session]:
     factory: sessionmaker[Session] = request.app.state.session_factory
     db = factory()
     db.begin()
+    committing = False
     try:
         yield db
-    except BaseException:
+        committing = True
+    finally:
         with anyio.CancelScope(shield=True):
-            await anyio.to_thread.run_sync(_end, db, False)
-        raise
-    with anyio.CancelScope(shield=True):
-        await anyio.to_thread.run_sync(_end, db, True)
+            await anyio.to_thread.run_sync(_end, db, committing)
 
 
 def _end(db: Session, commit: bool) -> None:

@@ -16,6 +16,7 @@ import itertools
 import time
 from contextlib import nullcontext
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from sqlalchemy.orm import Session, sessionmaker
@@ -117,10 +118,7 @@ class CommandService:
         lease renewed) in one transaction: one write under the audit chain's lock, not two. A
         refused command is audited as its intent followed by the refusal, as if checked after
         the intent was written; a command whose intent cannot be written is not sent."""
-
-        def entry(result: audit.AuditResult, detail: str | None = None) -> AuditEntry:
-            return _entry(user, vehicle_id, action, request, result, detail)
-
+        entry = partial(_entry, user, vehicle_id, action, request)
         try:
             self._alive(vehicle_id)
             with chained(self._factory) as db:
@@ -156,9 +154,6 @@ class CommandService:
                 body=body,
             )
             ack = self._bridge.command(command, timeout_s=self.timeout_s)
-        except (NotFoundError, ConflictError) as exc:
-            self._audit(user, vehicle_id, action, request, audit.AuditResult.REFUSED, str(exc))
-            raise
         except RequestTimeoutError as exc:
             self._audit(user, vehicle_id, action, request, audit.AuditResult.TIMEOUT, str(exc))
             raise VehicleTimeoutError(f"{vehicle_id} did not answer") from exc
@@ -301,7 +296,7 @@ def _entry(
     action: str,
     request: dict[str, Any],
     result: audit.AuditResult,
-    detail: str | None,
+    detail: str | None = None,
 ) -> AuditEntry:
     return audit.audit_entry(
         user=user.username,
