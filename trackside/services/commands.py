@@ -34,7 +34,7 @@ from trackside.errors import (
     VehicleTimeoutError,
 )
 from trackside.journey_planner import Booking, JourneyPlanner, PlannedJourney
-from trackside.models import AuditEntry, User
+from trackside.models import User
 from trackside.services import audit, holds
 from trackside.services.audit_chain import append, chained
 from trackside.services.journeys import (
@@ -91,17 +91,23 @@ class CommandService:
         result: audit.AuditResult,
         detail: str | None = None,
     ) -> None:
-        audit.record(self._factory, _entry(user, vehicle_id, action, request, result, detail))
+        entry = audit.audit_entry(
+            user=user.username,
+            vehicle_id=vehicle_id,
+            action=action,
+            request=request,
+            result=result,
+            detail=detail,
+        )
+        audit.record(self._factory, entry)
 
     def _alive(self, vehicle_id: str) -> None:
         snapshot = self._bridge.snapshot(vehicle_id)
         if snapshot is None or not snapshot.alive:
             raise NotFoundError(f"{vehicle_id} is not alive")
 
-    def _check(self, user: User, vehicle_id: str, *, needs_hold: bool = True) -> None:
+    def _check(self, user: User, vehicle_id: str) -> None:
         self._alive(vehicle_id)
-        if not needs_hold:
-            return
         with self._factory() as db, db.begin():  # the holder's command renews the lease
             holds.check_holder(db, vehicle_id, user, lease_s=self.hold_lease_s)
 
@@ -118,17 +124,23 @@ class CommandService:
         lease renewed) in one transaction: one write under the audit chain's lock, not two. A
         refused command is audited as its intent followed by the refusal, as if checked after
         the intent was written; a command whose intent cannot be written is not sent."""
-        entry = partial(_entry, user, vehicle_id, action, request)
+        entry = partial(
+            audit.audit_entry,
+            user=user.username,
+            vehicle_id=vehicle_id,
+            action=action,
+            request=request,
+        )
         try:
             self._alive(vehicle_id)
             with chained(self._factory) as db:
-                append(db, entry(audit.AuditResult.REQUESTED))
+                append(db, entry(result=audit.AuditResult.REQUESTED))
                 if needs_hold:
                     holds.check_holder(db, vehicle_id, user, lease_s=self.hold_lease_s)
         except (NotFoundError, ConflictError) as exc:
             with chained(self._factory) as db:
-                append(db, entry(audit.AuditResult.REQUESTED))
-                append(db, entry(audit.AuditResult.REFUSED, str(exc)))
+                append(db, entry(result=audit.AuditResult.REQUESTED))
+                append(db, entry(result=audit.AuditResult.REFUSED, detail=str(exc)))
             raise
 
     def send(self, user: User, vehicle_id: str, body: m.CommandBody) -> m.CommandAck:
@@ -288,21 +300,3 @@ class CommandService:
                 )
                 check, line_version = validate_journey(db, stored.journey)
         return stored, check, line_version, planned
-
-
-def _entry(
-    user: User,
-    vehicle_id: str,
-    action: str,
-    request: dict[str, Any],
-    result: audit.AuditResult,
-    detail: str | None = None,
-) -> AuditEntry:
-    return audit.audit_entry(
-        user=user.username,
-        vehicle_id=vehicle_id,
-        action=action,
-        request=request,
-        result=result,
-        detail=detail,
-    )
