@@ -19,7 +19,7 @@ from deploy.scenario.schema import Action
 from deploy.scenario.trackside_harness import TracksideHarness
 from protocol import messages as m
 
-__all__ = ["CONFIRMATIONS", "OperatorScript"]
+__all__ = ["CONFIRMATIONS", "OperatorScript", "ma_summary"]
 
 CONFIRMATIONS = {
     "confirm_rearm": (m.OperatorRequestKind.EB_REARM, "confirmations/eb-rearm"),
@@ -28,6 +28,20 @@ CONFIRMATIONS = {
     "vigilance_ack": (m.OperatorRequestKind.VIGILANCE, "confirmations/vigilance-ack"),
 }
 """Actions that confirm a VC request: the request's kind and the confirmation's route."""
+
+
+def ma_summary(answer: dict[str, Any]) -> str:
+    """An issued MA as the run's log keeps it: its number, change and extent. Not the answer's
+    text, which carries the session's id and number (new and random in every run): the log,
+    and ``kpis.json`` with it, are the same for the same scenario and seed."""
+    ma = answer["movement_authority"]
+    authority = ma.get("authority") or {}
+    extent = (
+        f"{authority['start_m']:.1f} → {authority['end_of_authority_m']:.1f} m"
+        if authority
+        else "revoked"
+    )
+    return f"MA {ma['ma_id']} {ma['change']}: {extent}"
 
 
 class OperatorScript:
@@ -88,7 +102,8 @@ class OperatorScript:
             assert action.end_of_authority_m is not None
             answer = trackside.movement_authority(action.end_of_authority_m)
             accepted = answer.status_code in (200, 201)
-            ctx.log(action.do, accepted, answer.text[:200], at_s=now_s)
+            detail = ma_summary(answer.json()) if accepted else answer.text[:200]
+            ctx.log(action.do, accepted, detail, at_s=now_s)
             if not accepted:
                 ctx.failures.append(f"issue_ma at {now_s:.1f} s refused: {answer.text[:200]}")
             return

@@ -27,6 +27,7 @@ from typing import Any
 
 from pydantic_core import to_json, to_jsonable_python
 
+from protocol import messages as m
 from trackside.api.schemas import REPORT_ONLY_FIELDS
 from trackside.bridge import VehicleSnapshot
 
@@ -73,13 +74,59 @@ def fleet_data(
     return vehicles
 
 
+_TRUE_FALSE = (b"false", b"true")
+
+
+def _status_json(report: m.StatusReport, age_s: float | None, rate_ok: bool) -> bytes:
+    """A report as the public status's JSON: serialised in one call without the fields the
+    public status leaves out, its age and rate spliced in before the closing brace."""
+    body: bytes = report.__pydantic_serializer__.to_json(report, exclude=REPORT_ONLY_FIELDS)
+    return b"".join(
+        (body[:-1], b',"age_s":', to_json(age_s), b',"rate_ok":', _TRUE_FALSE[rate_ok], b"}")
+    )
+
+
 def fleet_json(
     snapshots: Iterable[VehicleSnapshot],
     held: dict[str, tuple[str, datetime]],
     simulated: Container[str],
 ) -> bytes:
-    """:func:`fleet_data` as JSON, the body of ``GET /vehicles``."""
-    return to_json(fleet_data(snapshots, held, simulated))
+    """:func:`fleet_data` as JSON, the body of ``GET /vehicles``, written vehicle by vehicle.
+
+    Each report is serialised by its model's serialiser straight to JSON, and the vehicle's
+    entry is joined around it: no dictionary per report and no single call over the whole list.
+    Serialising a thousand vehicles' data in one call held the interpreter for milliseconds that
+    no other thread could interrupt (docs/trackside.md, "Fifth sitting"); between two vehicles
+    the builder hands it over as any Python code does."""
+    entries = []
+    for snapshot in snapshots:
+        holder, until = held.get(snapshot.id, (None, None))
+        report = snapshot.status
+        status = (
+            b"null"
+            if report is None
+            else _status_json(report, snapshot.status_age_s, snapshot.status_rate_ok)
+        )
+        entries.append(
+            b"".join(
+                (
+                    b'{"id":',
+                    to_json(snapshot.id),
+                    b',"alive":',
+                    _TRUE_FALSE[snapshot.alive],
+                    b',"status":',
+                    status,
+                    b',"holder":',
+                    to_json(holder),
+                    b',"hold_expires_at":',
+                    to_json(until),
+                    b',"simulated_operator":',
+                    _TRUE_FALSE[snapshot.id in simulated],
+                    b"}",
+                )
+            )
+        )
+    return b"[" + b",".join(entries) + b"]"
 
 
 class FleetListCache:
