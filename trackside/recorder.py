@@ -122,11 +122,12 @@ def insert_rows(db: Session, model: type[Base], rows: list[dict[str, Any]]) -> N
     here because SQLAlchemy compiles a statement of many VALUES again for each batch, which
     cost more than the rows. The values go through each column type's own conversion, as
     SQLAlchemy's would; a driver of another paramstyle is given ``executemany``."""
+    if not rows:
+        return
     dialect = db.get_bind().dialect
     mark = _PLACEHOLDERS.get(dialect.paramstyle)
-    if mark is None or not rows:
-        if rows:
-            db.execute(insert(model), rows)
+    if mark is None:
+        db.execute(insert(model), rows)
         return
     table = cast(Table, model.__table__)
     names = list(rows[0])

@@ -25,7 +25,7 @@ from trackside.services.fleet_list import (
     MAX_AGE_S,
     STALE_LIMIT_S,
     FleetListCache,
-    fleet_data,
+    fleet_frame,
     fleet_json,
 )
 
@@ -145,7 +145,8 @@ def test_the_list_s_json_is_the_public_models_json(
     expected = json.loads(_LIST.dump_json(models))
     assert json.loads(fleet_json(snapshots, holders, simulated)) == expected
     # The fleet stream's frame, sent as JSON text, carries the same data.
-    assert json.loads(json.dumps(fleet_data(snapshots, holders, simulated))) == expected
+    frame = json.loads(fleet_frame(snapshots, holders, simulated))
+    assert frame == {"type": "fleet", "vehicles": expected}
 
 
 def test_the_service_hands_the_interpreter_over_every_half_millisecond(client: TestClient) -> None:

@@ -23,15 +23,14 @@ import threading
 import time
 from collections.abc import Callable, Container, Iterable
 from datetime import datetime
-from typing import Any
 
-from pydantic_core import to_json, to_jsonable_python
+from pydantic_core import to_json
 
 from protocol import messages as m
 from trackside.api.schemas import REPORT_ONLY_FIELDS
 from trackside.bridge import VehicleSnapshot
 
-__all__ = ["MAX_AGE_S", "STALE_LIMIT_S", "FleetListCache", "fleet_data", "fleet_json"]
+__all__ = ["MAX_AGE_S", "STALE_LIMIT_S", "FleetListCache", "fleet_frame", "fleet_json"]
 
 _log = logging.getLogger(__name__)
 
@@ -39,39 +38,6 @@ MAX_AGE_S = 0.2
 """The age [s] from which a list is built again: one status period at 5 Hz."""
 STALE_LIMIT_S = 1.0
 """The oldest list served while a new one is built [s]; an older one is built for the request."""
-
-
-def fleet_data(
-    snapshots: Iterable[VehicleSnapshot],
-    held: dict[str, tuple[str, datetime]],
-    simulated: Container[str],
-) -> list[dict[str, Any]]:
-    """Each vehicle as the fleet's list and stream show it (:class:`VehiclePublic`), as JSON
-    data made without building the models: each report dumped without the fields the public
-    status leaves out, its age and rate added; ``held`` by vehicle the holder and the end of the
-    lease (:func:`trackside.services.holds.holders`), ``simulated`` the vehicles the simulated
-    operator answers. A third of the models' time for a thousand vehicles; the same JSON
-    (``tests/trackside/test_fleet_list.py`` checks it against the models')."""
-    vehicles = []
-    for snapshot in snapshots:
-        holder, until = held.get(snapshot.id, (None, None))
-        report = snapshot.status
-        status = None
-        if report is not None:
-            status = report.model_dump(mode="json", exclude=REPORT_ONLY_FIELDS)
-            status["age_s"] = snapshot.status_age_s
-            status["rate_ok"] = snapshot.status_rate_ok
-        vehicles.append(
-            {
-                "id": snapshot.id,
-                "alive": snapshot.alive,
-                "status": status,
-                "holder": holder,
-                "hold_expires_at": to_jsonable_python(until),
-                "simulated_operator": snapshot.id in simulated,
-            }
-        )
-    return vehicles
 
 
 _TRUE_FALSE = (b"false", b"true")
@@ -91,7 +57,11 @@ def fleet_json(
     held: dict[str, tuple[str, datetime]],
     simulated: Container[str],
 ) -> bytes:
-    """:func:`fleet_data` as JSON, the body of ``GET /vehicles``, written vehicle by vehicle.
+    """Each vehicle as the fleet's list and stream show it (:class:`VehiclePublic`), the body of
+    ``GET /vehicles``, written as JSON vehicle by vehicle without building the models; ``held``
+    by vehicle the holder and the end of the lease (:func:`trackside.services.holds.holders`),
+    ``simulated`` the vehicles the simulated operator answers. The same JSON as the models'
+    (``tests/trackside/test_fleet_list.py``).
 
     Each report is serialised by its model's serialiser straight to JSON, and the vehicle's
     entry is joined around it: no dictionary per report and no single call over the whole list.
@@ -127,6 +97,15 @@ def fleet_json(
             )
         )
     return b"[" + b",".join(entries) + b"]"
+
+
+def fleet_frame(
+    snapshots: Iterable[VehicleSnapshot],
+    held: dict[str, tuple[str, datetime]],
+    simulated: Container[str],
+) -> str:
+    """The fleet stream's frame (``/ws/fleet``): :func:`fleet_json`'s list as ``vehicles``."""
+    return '{"type":"fleet","vehicles":' + fleet_json(snapshots, held, simulated).decode() + "}"
 
 
 class FleetListCache:

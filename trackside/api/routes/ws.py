@@ -30,7 +30,7 @@ from trackside.bridge import ZenohBridge
 from trackside.errors import AuthenticationError
 from trackside.live import LiveHub
 from trackside.services import holds, users
-from trackside.services.fleet_list import fleet_data
+from trackside.services.fleet_list import fleet_frame
 from trackside.simulated_operator import SimulatedOperatorThread
 
 __all__ = ["AUTH_DEADLINE_S", "POLICY_VIOLATION", "router"]
@@ -144,11 +144,11 @@ def _hold(factory: sessionmaker[Session], vehicle_id: str) -> tuple[str, datetim
         return None if hold is None else (hold.username, holds.expires_at(hold))
 
 
-def _fleet_frame(app: Any, held: Holds) -> dict[str, Any]:
+def _fleet_frame(app: Any, held: Holds) -> str:
     bridge: ZenohBridge = app.state.bridge
     operator: SimulatedOperatorThread | None = app.state.simulated_operator
     simulated = frozenset() if operator is None else operator.operator.vehicles
-    return {"type": "fleet", "vehicles": fleet_data(bridge.fleet(), held, simulated)}
+    return fleet_frame(bridge.fleet(), held, simulated)
 
 
 @router.websocket("/fleet")
@@ -174,7 +174,7 @@ async def fleet_stream(websocket: WebSocket) -> None:
                 await asyncio.wait_for(changed.wait(), timeout=HEARTBEAT_S)
             changed.clear()
             held = await asyncio.to_thread(_holders, factory)
-            await websocket.send_json(_fleet_frame(app, held))
+            await websocket.send_text(_fleet_frame(app, held))
             await asyncio.sleep(period_s)
         await _refuse(websocket, "token no longer valid")
     except WebSocketDisconnect:
