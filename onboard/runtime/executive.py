@@ -91,6 +91,15 @@ class Executive:
         self._measures_lateness = type(clock).lateness_ns is not Clock.lateness_ns
         """Lockstep clocks are never late: their lateness is not asked for in the hot loop."""
         self._speed_factor = clock.speed_factor if isinstance(clock, RealTimeClock) else 1.0
+        self._running: _Entry | None = None
+        """The release now running (None between releases)."""
+        self._sleep_until: dict[str, int | None] = {}
+        """Asked by a task during its release: its next release no sooner than this (None:
+        none until woken)."""
+        self._asleep: dict[str, tuple[int, _Entry | None]] = {}
+        """Sleeping tasks: their last release [ns] and their queued entry (if any)."""
+        self._stale: set[int] = set()
+        """Push orders of queued entries that a wake replaced: dropped when they come up."""
 
     def add_task(
         self,
@@ -158,19 +167,29 @@ class Executive:
         real_time = self._real_time
         late = self._measures_lateness
         trace = self.trace
+        stale, asleep = self._stale, self._asleep
         while queue and not self._stopped:
             entry = queue[0]
             if entry[0] != release_ns:
                 break
+            if stale and entry[2] in stale:
+                stale.discard(entry[2])
+                heapq.heappop(queue)
+                continue
             name = entry[3]
+            if asleep and name in asleep:
+                del asleep[name]  # released at the end of its sleep
             task, stats = tasks[name], all_stats[name]
             lateness = clock.lateness_ns(release_ns) if late else 0
+            self._running = entry
             started = perf_counter_ns()
             try:
                 task.step(release_ns)
             except BaseException:
                 self._discard(entry)
                 raise
+            finally:
+                self._running = None
             elapsed = perf_counter_ns() - started
             stats.releases += 1
             stats.exec_total_ns += elapsed
@@ -189,12 +208,84 @@ class Executive:
             if trace is not None:
                 trace.append((release_ns, name))
             self._order += 1
-            following = (release_ns + task.period_ns, -task.priority, self._order, name)
+            next_ns: int | None = release_ns + task.period_ns
+            if self._sleep_until and name in self._sleep_until:
+                next_ns = self._fall_asleep(task, release_ns)
+            if next_ns is None:
+                following = None
+            else:
+                following = (next_ns, -task.priority, self._order, name)
+                if name in self._asleep:
+                    self._asleep[name] = (release_ns, following)
             if queue[0] is entry:
-                heapq.heapreplace(queue, following)
+                if following is None:
+                    heapq.heappop(queue)
+                else:
+                    heapq.heapreplace(queue, following)
             else:  # the body registered a task that now comes first
                 self._discard(entry)
-                heapq.heappush(queue, following)
+                if following is not None:
+                    heapq.heappush(queue, following)
+
+    # -- sleeping tasks (lockstep) -------------------------------------------------------------
+
+    def sleep(self, name: str, until_ns: int | None) -> None:
+        """From within ``name``'s release: skip its releases until the last one at or before
+        ``until_ns`` (None: until woken), or until :meth:`wake`. The task must not depend on
+        being released meanwhile: what it would have done there must be nothing at all."""
+        self._sleep_until[name] = until_ns
+
+    def _fall_asleep(self, task: Task, release_ns: int) -> int | None:
+        until_ns = self._sleep_until.pop(task.name)
+        self._asleep[task.name] = (release_ns, None)
+        if until_ns is None:
+            return None
+        period = task.period_ns
+        latest = release_ns + (until_ns - release_ns) // period * period
+        return max(latest, release_ns + period)
+
+    def asleep(self, name: str) -> bool:
+        return name in self._asleep
+
+    def wake(self, name: str) -> None:
+        """Release a sleeping task again from its next release after the one now running
+        (after the present instant between releases); no effect on a task awake."""
+        slept = self._asleep.pop(name, None)
+        if slept is None:
+            return
+        last_ns, queued = slept
+        task = self.tasks[name]
+        next_ns = self.next_release_ns(task, last_ns)
+        if queued is not None:
+            if queued[0] <= next_ns:
+                return
+            self._stale.add(queued[2])
+        self._order += 1
+        heapq.heappush(self._queue, (next_ns, -task.priority, self._order, name))
+
+    def next_release_ns(self, task: Task, last_ns: int) -> int:
+        """The first release on ``task``'s grid (``last_ns`` plus periods) that is still ahead:
+        after the release now running, in the executive's order, or after the present
+        instant between releases."""
+        running = self._running
+        now_ns = running[0] if running is not None else self.clock.now_ns
+        period = task.period_ns
+        steps = max(1, -(-(now_ns - last_ns) // period))
+        candidate = last_ns + steps * period
+        if candidate == now_ns and (running is None or -task.priority <= running[1]):
+            candidate += period  # at the present instant, but its turn has passed
+        return candidate
+
+    def last_release_ns(self, task: Task, anchor_ns: int) -> int:
+        """The latest release on ``task``'s grid (``anchor_ns`` plus or minus periods) that
+        has had its turn: at or before the release now running, in the executive's order."""
+        running = self._running
+        now_ns = running[0] if running is not None else self.clock.now_ns
+        period = task.period_ns
+        latest = anchor_ns + (now_ns - anchor_ns) // period * period
+        if latest == now_ns and running is not None and -task.priority > running[1]:
+            latest -= period  # its turn at this instant is still to come
+        return latest
 
     def _discard(self, entry: _Entry) -> None:
         """Take a released task's entry out of the queue (wherever it now sits)."""

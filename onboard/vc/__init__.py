@@ -164,6 +164,10 @@ from onboard.vc.task_b import (
 from onboard.vc.task_c import (
     TaskC,
 )
+from onboard.vc.tick import (
+    Doorbell,
+    QuietTick,
+)
 
 __all__ = [
     "ALL_TABLES",
@@ -198,6 +202,7 @@ __all__ = [
     "BrakeState",
     "Datalog",
     "DatalogCorruptError",
+    "Doorbell",
     "DatalogRecord",
     "DatalogRecorder",
     "DatalogReplay",
@@ -221,6 +226,7 @@ __all__ = [
     "PairEventKind",
     "PipeFault",
     "QuietCycles",
+    "QuietTick",
     "RadioRelay",
     "RedundancyConfig",
     "RelayFault",

@@ -144,6 +144,14 @@ class EmergencyBrakeValves:
         else:
             self._rate = 1.0 / self.recharge_s
 
+    def release_change_s(self, now_s: float) -> float:
+        """When the EB input, not released at ``now_s``, turns released with time alone (the
+        pipe recharging past :data:`RELEASE_FRACTION`), a microsecond early (the input's own
+        float sum may cross a little later); inf if it does not."""
+        if not self._energised or self._rate <= 0.0 or self.eb_released(now_s):
+            return math.inf
+        return self._time_0 + (RELEASE_FRACTION - self._pressure_0) / self._rate - 1e-6
+
     def eb_released(self, now_s: float) -> bool:
         """The EB digital input: valves energised and the pipe charged."""
         return self._energised and self.pressure_fraction(now_s) >= RELEASE_FRACTION
@@ -201,6 +209,10 @@ class RadioRelay:
             self._pending = None
             return
         self._pending = (now_s + self.switching_delay_s, inserted)
+
+    def pending_switch_s(self) -> float:
+        """When the contact switches as last commanded [s] (inf: nothing pending)."""
+        return self._pending[0] if self._pending is not None else math.inf
 
     def inserted(self, now_s: float) -> bool:
         """The contact as the ETCS digital input re-reads it at ``now_s``."""

@@ -17,6 +17,7 @@ messages.
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Generic, NamedTuple, TypeVar
@@ -53,13 +54,19 @@ class Mailbox(Generic[T]):
     def __init__(self) -> None:
         self._value: T | None = None
         self.posts = 0
+        self.stamp: Callable[[T], T] | None = None
+        """While its task sleeps (lockstep, :mod:`onboard.vc.tick`): what a read applies to
+        the last value posted (the time of the release that would have reposted it)."""
 
     def post(self, value: T) -> None:
         self._value = value
         self.posts += 1
 
     def read(self) -> T | None:
-        return self._value
+        value, stamp = self._value, self.stamp
+        if stamp is None or value is None:
+            return value
+        return stamp(value)
 
 
 class MessageQueue(Generic[T]):
@@ -71,11 +78,15 @@ class MessageQueue(Generic[T]):
         self._items: deque[T] = deque(maxlen=capacity)
         self.capacity = capacity
         self.dropped = 0
+        self.on_put: Callable[[], None] | None = None
+        """Called after each put (the reader's doorbell, when it sleeps in lockstep)."""
 
     def put(self, item: T) -> None:
         if len(self._items) == self.capacity:
             self.dropped += 1
         self._items.append(item)
+        if self.on_put is not None:
+            self.on_put()
 
     def take_all(self) -> tuple[T, ...]:
         """Everything queued, oldest first; the queue is then empty."""

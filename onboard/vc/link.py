@@ -121,6 +121,8 @@ class FaultyLink(Generic[T]):
         self.sent = 0
         self.dropped = 0
         self.delivered = 0
+        self.on_send: Callable[[], None] | None = None
+        """Called when a message goes in flight (the reader's doorbell, when it sleeps)."""
 
     def send(self, message: T, now_s: float) -> None:
         """Put ``message`` on the wire at ``now_s``."""
@@ -148,6 +150,12 @@ class FaultyLink(Generic[T]):
             self._last_sent = message
         self._count += 1
         heapq.heappush(self._in_flight, (now_s + delay_s, self._count, message))
+        if self.on_send is not None:
+            self.on_send()
+
+    def next_arrival_s(self) -> float:
+        """When the next message in flight arrives [s] (inf: none in flight)."""
+        return self._in_flight[0][0] if self._in_flight else math.inf
 
     def arrived_by(self, now_s: float) -> bool:
         """Whether :meth:`receive` at ``now_s`` would hand over a message."""

@@ -49,6 +49,7 @@ from onboard.vc.quiet import skips_quiet_cycles
 from onboard.vc.task_a import TaskA
 from onboard.vc.task_b import TaskB
 from onboard.vc.task_c import TaskC
+from onboard.vc.tick import QuietTick
 
 __all__ = [
     "TASK_A_PRIORITY",
@@ -182,6 +183,8 @@ class VitalControl:
             etcs_inserted=hardware.relay.commanded_inserted,
             status=actuation,
         )
+        self.tick: QuietTick | None = None
+        """Tasks B and C as one sleeping task (lockstep: :mod:`onboard.vc.tick`)."""
         self.task_a = TaskA(
             self.config,
             request_link=hardware.request_link,
@@ -198,12 +201,33 @@ class VitalControl:
 
     def register(
         self, executive: Executive, *, phase_s: float = 0.0, event_driven: bool | None = None
-    ) -> tuple[Task, Task, Task]:
+    ) -> tuple[Task, ...]:
         """Add the tasks ``vc.B``, ``vc.C`` and ``vc.A`` to ``executive``; returns them.
 
-        ``event_driven``: B and C skip their quiet cycles (None: in lockstep only)."""
-        self.skip_quiet_cycles(skips_quiet_cycles(executive, event_driven))
+        ``event_driven``: B and C skip their quiet cycles (None: in lockstep only), released
+        as one task ``vc.tick`` that sleeps while they are quiet (:mod:`onboard.vc.tick`)."""
+        skip = skips_quiet_cycles(executive, event_driven)
+        self.skip_quiet_cycles(skip)
         config = self.config
+        if skip and config.task_b_period_s == config.task_c_period_s:
+            tick = QuietTick((self,))
+            self.tick = tick
+            return (
+                tick.register(
+                    executive,
+                    "vc.tick",
+                    period_s=config.task_b_period_s,
+                    phase_s=phase_s,
+                    priority=TASK_B_PRIORITY,
+                ),
+                executive.add_task(
+                    "vc.A",
+                    tick.after(self._run_a),
+                    period_s=config.task_a_period_s,
+                    phase_s=phase_s,
+                    priority=TASK_A_PRIORITY,
+                ),
+            )
         return (
             executive.add_task(
                 "vc.B",

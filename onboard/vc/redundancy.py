@@ -36,6 +36,7 @@ from onboard.vc.module import (
     VitalControl,
 )
 from onboard.vc.quiet import skips_quiet_cycles
+from onboard.vc.tick import QuietTick
 
 __all__ = [
     "VOTER_PRIORITY",
@@ -208,6 +209,8 @@ class TwoOutOfTwo:
         self.tripped_by: PairEventKind | None = None
         self.disagreeing_since_s: float | None = None
         self._contacts_open = [True, True]
+        self.tick: QuietTick | None = None
+        """The replicas' B and C and this voter as one sleeping task (lockstep)."""
 
     @property
     def tripped(self) -> bool:
@@ -231,8 +234,12 @@ class TwoOutOfTwo:
 
         ``event_driven``: B and C skip their quiet cycles (None: in lockstep only)."""
         skip = skips_quiet_cycles(executive, event_driven)
-        for index, replica in enumerate(self.replicas):
+        for replica in self.replicas:
             replica.skip_quiet_cycles(skip)
+        if skip and not self.faults and self._one_period():
+            self._register_tick(executive, phase_s)
+            return
+        for index, replica in enumerate(self.replicas):
             config = replica.config
             tasks: tuple[tuple[str, Callable[[float], object], float, int], ...] = (
                 (
@@ -259,6 +266,34 @@ class TwoOutOfTwo:
             phase_s=phase_s,
             priority=VOTER_PRIORITY,
         )
+
+    def _one_period(self) -> bool:
+        """B, C and the voter share one period (a condition of :class:`QuietTick`)."""
+        return all(
+            r.config.task_b_period_s == r.config.task_c_period_s == self.config.period_s
+            for r in self.replicas
+        )
+
+    def _register_tick(self, executive: Executive, phase_s: float) -> None:
+        """``vc.tick`` (each B, each C, the voter, asleep while quiet), ``vc0.A``, ``vc1.A``:
+        in lockstep, with no replica fault to inject."""
+        tick = QuietTick(self.replicas, pair=self)
+        self.tick = tick
+        tick.register(
+            executive,
+            "vc.tick",
+            period_s=self.config.period_s,
+            phase_s=phase_s,
+            priority=TASK_B_PRIORITY,
+        )
+        for index, replica in enumerate(self.replicas):
+            executive.add_task(
+                f"vc{index}.A",
+                tick.after(self._unless_halted(index, replica.task_a.step)),
+                period_s=replica.config.task_a_period_s,
+                phase_s=phase_s,
+                priority=TASK_A_PRIORITY,
+            )
 
     def _kicking(self, index: int, step: Callable[[float], object]) -> Callable[[float], object]:
         def run(now_s: float) -> None:

@@ -22,7 +22,9 @@ The flag stays up until the hazard has gone with the train at standstill and the
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
+from typing import Any
 
 from onboard.etcs.balises import TelegramHeader
 from onboard.vc.config import VcConfig
@@ -221,6 +223,29 @@ class TaskB:
         if (actuation.brake_state if actuation else None) is not self._read_brake_state:
             return False
         return self._fused_quiet(now_s)
+
+    def input_queues(self) -> tuple[MessageQueue[Any], ...]:
+        """The queues a cycle reads (each put is an input: :mod:`onboard.vc.tick`)."""
+        queues: tuple[MessageQueue[Any], ...] = (
+            self._requests_sent,
+            self._tachometer_frames,
+            self._balise_telegrams,
+        )
+        return queues if self._fused_speeds is None else (*queues, self._fused_speeds)
+
+    def quiet_horizon_s(self) -> float:
+        """Until when [s] the cycles stay quiet with no new input and the digital inputs as
+        they are (−inf: the next one may not be): the thresholds, and a fused speed's
+        staleness."""
+        quiet = self.quiet
+        if not quiet.enabled or self._status is None or any(map(len, self.input_queues())):
+            return -math.inf
+        horizon = quiet.until_s
+        fused = self._fused
+        supervised = self._fused_speeds is not None and self.config.fused_speed_supervision
+        if supervised and fused is not None and not self._fused_stale:
+            horizon = min(horizon, fused.arrived_s + self.config.fused_speed_timeout_s)
+        return horizon
 
     def _fused_quiet(self, now_s: float) -> bool:
         if self._fused_speeds is None or not self.config.fused_speed_supervision:

@@ -17,6 +17,7 @@ when it cannot be acted on (moving, System Decay) is refused and logged.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 from onboard.vc.config import TIME_TOLERANCE_S, VcConfig
@@ -249,6 +250,14 @@ class TaskC:
                 ),
             )
         return actuation
+
+    def quiet_horizon_s(self) -> float:
+        """Until when [s] the cycles stay quiet while Task B's status does (−inf: the next
+        one may not be)."""
+        quiet = self.quiet
+        if not quiet.enabled or self._actuation is None or self._input is None:
+            return -math.inf
+        return quiet.until_s
 
     def _fingerprint(self, actuation: ActuationStatus) -> tuple[object, ...]:
         """Every piece of state a cycle can change, and its status but for the time."""

@@ -190,3 +190,64 @@ def test_a_task_that_raises_leaves_the_others_running() -> None:
         executive.run_until(0)
     executive.run_until(20 * MS)
     assert executive.trace == [(0, "ok"), (10 * MS, "ok"), (20 * MS, "ok")]
+
+
+def _sleeper(executive: Executive, released: list[int], *, until_ns: int | None) -> None:
+    """A 2 ms task (priority 5) that goes to sleep on its first release."""
+
+    def step(release_ns: int) -> None:
+        released.append(release_ns)
+        if len(released) == 1:
+            executive.sleep("sleeper", until_ns)
+
+    executive.add_task("sleeper", step, period_s=0.002, priority=5)
+
+
+def test_a_sleeping_task_comes_back_at_the_last_release_before_its_horizon() -> None:
+    executive = Executive(SimClock())
+    released: list[int] = []
+    _sleeper(executive, released, until_ns=9 * MS)
+    executive.run_until(14 * MS)
+    assert released == [0, 8 * MS, 10 * MS, 12 * MS, 14 * MS]
+    assert executive.stats["sleeper"].releases == 5
+
+
+@pytest.mark.parametrize(("waker_priority", "woken_at_ms"), [(9, 10), (1, 12)])
+def test_a_wake_releases_the_sleeper_at_its_next_turn(
+    waker_priority: int, woken_at_ms: int
+) -> None:
+    """Woken at 10 ms by a task that runs before it there: released at 10 ms; by one that
+    runs after it: at 12 ms. Its horizon's entry (20 ms) is then dropped."""
+    executive = Executive(SimClock(), record_trace=True)
+    released: list[int] = []
+    _sleeper(executive, released, until_ns=20 * MS)
+    seen: list[int] = []
+
+    def waker(release_ns: int) -> None:
+        seen.append(executive.last_release_ns(executive.tasks["sleeper"], 0))
+        if release_ns == 10 * MS:
+            executive.wake("sleeper")
+
+    executive.add_task("waker", waker, period_s=0.010, priority=waker_priority)
+    executive.run_until(24 * MS)
+    assert released == [0, woken_at_ms * MS, *range((woken_at_ms + 2) * MS, 25 * MS, 2 * MS)]
+    assert not executive.asleep("sleeper")
+    # Where the sleeper's turn stands while the waker runs: at 10 ms, after it or before it.
+    before = waker_priority > 5
+    assert seen == [
+        (-2 if before else 0) * MS,
+        (8 if before else 10) * MS,
+        (18 if before else 20) * MS,
+    ]
+
+
+def test_a_task_asleep_until_woken_is_not_released_at_all() -> None:
+    executive = Executive(SimClock())
+    released: list[int] = []
+    _sleeper(executive, released, until_ns=None)
+    executive.run_until(100 * MS)
+    assert released == [0]
+    assert executive.asleep("sleeper")
+    executive.wake("sleeper")  # between runs: from the next release after the present
+    executive.run_until(104 * MS)
+    assert released == [0, 102 * MS, 104 * MS]
