@@ -64,6 +64,10 @@ class TracksideHarness:
             # long the wall time in between: its hold must not lapse (a console renews its
             # lease while open; this driver has no console).
             hold_lease_s=24 * 3600.0,
+            # Each report taken on arrival, not in 5 ms batches: a run has one train or a few,
+            # and in lockstep the onboard waits for each report's acknowledgement at its next
+            # status tick (7 ms of wall time at 30x): a batch's wait made it wait there.
+            status_intake_period_s=0.0,
         )
         # The run's line goes in through the lines route, whatever its size.
         self._line_document = ctx.node.track_map.line.model_dump_json(round_trip=True)

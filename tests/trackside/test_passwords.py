@@ -21,6 +21,7 @@ from trackside.security import (
     use_password_cost,
     verify_password,
 )
+from trackside.services import users
 
 
 def _cost_of(stored: str) -> ScryptCost:
@@ -41,6 +42,15 @@ def test_a_new_hash_is_at_owasps_cost_and_says_so() -> None:
         assert not needs_rehash(stored)
     # The cost is real: far above the legacy hash's (about 8 times the work).
     assert hashing_s > 0.05
+
+
+def test_an_unknown_users_password_is_checked_at_owasps_cost_too() -> None:
+    """The hash an unknown username's password is checked against (so that it costs what a
+    known one's does) is a valid hash at today's cost, written in the code, not made at import."""
+    assert _cost_of(users._DUMMY_HASH) == OWASP_COST
+    with use_password_cost(OWASP_COST):
+        assert not needs_rehash(users._DUMMY_HASH)
+    assert not verify_password("timing-equaliser", users._DUMMY_HASH)
 
 
 def test_an_older_hash_verifies_at_its_own_cost_and_asks_to_be_renewed() -> None:
