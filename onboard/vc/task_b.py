@@ -237,10 +237,9 @@ class TaskB:
         """Until when [s] the cycles stay quiet with no new input and the digital inputs as
         they are (−inf: the next one may not be): the thresholds, and a fused speed's
         staleness."""
-        quiet = self.quiet
-        if not quiet.enabled or self._status is None or any(map(len, self.input_queues())):
+        horizon = self.quiet.until_s  # −inf unless enabled and the last full cycle was fixed
+        if horizon == -math.inf or self._status is None or any(map(len, self.input_queues())):
             return -math.inf
-        horizon = quiet.until_s
         fused = self._fused
         supervised = self._fused_speeds is not None and self.config.fused_speed_supervision
         if supervised and fused is not None and not self._fused_stale:

@@ -254,10 +254,9 @@ class TaskC:
     def quiet_horizon_s(self) -> float:
         """Until when [s] the cycles stay quiet while Task B's status does (−inf: the next
         one may not be)."""
-        quiet = self.quiet
-        if not quiet.enabled or self._actuation is None or self._input is None:
+        if self._actuation is None or self._input is None:
             return -math.inf
-        return quiet.until_s
+        return self.quiet.until_s  # −inf unless enabled and the last full cycle was fixed
 
     def _fingerprint(self, actuation: ActuationStatus) -> tuple[object, ...]:
         """Every piece of state a cycle can change, and its status but for the time."""

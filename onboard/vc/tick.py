@@ -114,8 +114,9 @@ class QuietTick:
             vc.task_c.step(now_s)
         if pair is not None:
             pair.step(now_s)
-        horizon_s = self.horizon_s(now_s)
-        if horizon_s >= (release_ns + task.period_ns) / NS_PER_S:
+        next_s = (release_ns + task.period_ns) / NS_PER_S
+        horizon_s = self.horizon_s(now_s, next_s)
+        if horizon_s >= next_s:
             until_ns = (
                 None if horizon_s == math.inf else math.floor((horizon_s - MARGIN_S) * NS_PER_S)
             )
@@ -123,19 +124,19 @@ class QuietTick:
             self._last_ns = release_ns
             self._stamp(self._stamped_time)
 
-    def horizon_s(self, now_s: float) -> float:
+    def horizon_s(self, now_s: float, next_s: float = -math.inf) -> float:
         """Until when [s] every B, C and the voter stay at their fixed points with no new
-        input (−inf: the next cycle may not be quiet)."""
+        input (−inf: the next cycle may not be quiet); the first horizon found before
+        ``next_s`` is returned at once (the tick stays awake whatever the others)."""
         if self.pair is not None and self.pair.disagreeing_since_s is not None:
             return -math.inf
         horizon = math.inf
         for vc in self.boards:
-            horizon = min(
-                horizon,
-                vc.task_b.quiet_horizon_s(),
-                vc.task_c.quiet_horizon_s(),
-                _hardware_horizon_s(vc, now_s),
-            )
+            horizon = min(horizon, vc.task_b.quiet_horizon_s(), vc.task_c.quiet_horizon_s())
+            if horizon < next_s:
+                return horizon
+        for vc in self.boards:
+            horizon = min(horizon, _hardware_horizon_s(vc, now_s))
         return horizon
 
     # -- asleep -----------------------------------------------------------------------------

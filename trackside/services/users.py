@@ -44,7 +44,6 @@ __all__ = [
 ]
 
 
-
 _DUMMY_HASH = (
     "scrypt$131072$8$1$Km-ZEJj36a87oi3v5z7JQQ==$3CTuOJZXKQiGcYcLbg0DdIkk-yOPLXXQYAFBpxDZ8L0="
 )
