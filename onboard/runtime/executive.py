@@ -164,10 +164,9 @@ class Executive:
         """
         queue, clock, tasks, all_stats = self._queue, self.clock, self.tasks, self.stats
         perf_counter_ns = self._perf_counter_ns
-        real_time = self._real_time
         late = self._measures_lateness
         trace = self.trace
-        stale, asleep = self._stale, self._asleep
+        stale, asleep, sleep_until = self._stale, self._asleep, self._sleep_until
         while queue and not self._stopped:
             entry = queue[0]
             if entry[0] != release_ns:
@@ -195,37 +194,33 @@ class Executive:
             stats.exec_total_ns += elapsed
             if elapsed > stats.exec_max_ns:
                 stats.exec_max_ns = elapsed
-            if lateness:
-                stats.lateness_total_ns += lateness
-                if lateness > stats.lateness_max_ns:
-                    stats.lateness_max_ns = lateness
-            if real_time and lateness + elapsed > task.period_ns / self._speed_factor:
-                # Overrun: the body ended after the wall deadline of the task's next release.
-                stats.overruns += 1
+            if late:
+                self._note_lateness(stats, task, lateness, elapsed)
             samples = stats.exec_samples_ns
             if len(samples) < MAX_EXEC_SAMPLES:
                 samples.append(elapsed)
             if trace is not None:
                 trace.append((release_ns, name))
             self._order += 1
-            next_ns: int | None = release_ns + task.period_ns
-            if self._sleep_until and name in self._sleep_until:
-                next_ns = self._fall_asleep(task, release_ns)
-            if next_ns is None:
-                following = None
-            else:
-                following = (next_ns, -task.priority, self._order, name)
-                if name in self._asleep:
-                    self._asleep[name] = (release_ns, following)
+            if sleep_until and name in sleep_until:
+                self._requeue_asleep(entry, task, release_ns)
+                continue
+            following = (release_ns + task.period_ns, -task.priority, self._order, name)
             if queue[0] is entry:
-                if following is None:
-                    heapq.heappop(queue)
-                else:
-                    heapq.heapreplace(queue, following)
+                heapq.heapreplace(queue, following)
             else:  # the body registered a task that now comes first
                 self._discard(entry)
-                if following is not None:
-                    heapq.heappush(queue, following)
+                heapq.heappush(queue, following)
+
+    def _note_lateness(self, stats: TaskStats, task: Task, lateness: int, elapsed: int) -> None:
+        """A release's lateness, and whether it overran (a clock that can be late only)."""
+        if lateness:
+            stats.lateness_total_ns += lateness
+            if lateness > stats.lateness_max_ns:
+                stats.lateness_max_ns = lateness
+        if self._real_time and lateness + elapsed > task.period_ns / self._speed_factor:
+            # Overrun: the body ended after the wall deadline of the task's next release.
+            stats.overruns += 1
 
     # -- sleeping tasks (lockstep) -------------------------------------------------------------
 
@@ -235,14 +230,23 @@ class Executive:
         being released meanwhile: what it would have done there must be nothing at all."""
         self._sleep_until[name] = until_ns
 
-    def _fall_asleep(self, task: Task, release_ns: int) -> int | None:
+    def _requeue_asleep(self, entry: _Entry, task: Task, release_ns: int) -> None:
+        """Replace ``entry`` (just released) by the task's release at the end of the sleep it
+        asked for, if any: the last on its grid at or before the horizon, the next at least."""
         until_ns = self._sleep_until.pop(task.name)
-        self._asleep[task.name] = (release_ns, None)
-        if until_ns is None:
-            return None
-        period = task.period_ns
-        latest = release_ns + (until_ns - release_ns) // period * period
-        return max(latest, release_ns + period)
+        following: _Entry | None = None
+        if until_ns is not None:
+            period = task.period_ns
+            latest = release_ns + (until_ns - release_ns) // period * period
+            following = (max(latest, release_ns + period), -task.priority, self._order, task.name)
+        self._asleep[task.name] = (release_ns, following)
+        queue = self._queue
+        if queue[0] is entry:
+            heapq.heappop(queue)
+        else:  # the body registered a task that now comes first
+            self._discard(entry)
+        if following is not None:
+            heapq.heappush(queue, following)
 
     def asleep(self, name: str) -> bool:
         return name in self._asleep

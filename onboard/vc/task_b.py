@@ -108,6 +108,9 @@ class TaskB:
         self._tachometer_frames = tachometer_frames
         self._balise_telegrams = balise_telegrams
         self._fused_speeds = fused_speeds
+        queues = (requests_sent, tachometer_frames, balise_telegrams, fused_speeds)
+        self.input_queues: tuple[MessageQueue[Any], ...] = tuple(q for q in queues if q is not None)
+        """The queues a cycle reads: each put is an input (:mod:`onboard.vc.tick`)."""
         self._fused: Delivery[float] | None = None
         self._read_eb_released = read_eb_released
         self._read_etcs_inserted = read_etcs_inserted
@@ -224,21 +227,10 @@ class TaskB:
             return False
         return self._fused_quiet(now_s)
 
-    def input_queues(self) -> tuple[MessageQueue[Any], ...]:
-        """The queues a cycle reads (each put is an input: :mod:`onboard.vc.tick`)."""
-        queues: tuple[MessageQueue[Any], ...] = (
-            self._requests_sent,
-            self._tachometer_frames,
-            self._balise_telegrams,
-        )
-        return queues if self._fused_speeds is None else (*queues, self._fused_speeds)
-
     def quiet_horizon_s(self) -> float:
-        """Until when [s] the cycles stay quiet with no new input and the digital inputs as
-        they are (−inf: the next one may not be): the thresholds, and a fused speed's
-        staleness."""
+        """Until when [s] cycles stay quiet with no new input (−inf: the next may not be)."""
         horizon = self.quiet.until_s  # −inf unless enabled and the last full cycle was fixed
-        if horizon == -math.inf or self._status is None or any(map(len, self.input_queues())):
+        if horizon == -math.inf or self._status is None or any(map(len, self.input_queues)):
             return -math.inf
         fused = self._fused
         supervised = self._fused_speeds is not None and self.config.fused_speed_supervision

@@ -81,7 +81,7 @@ class QuietTick:
         )
         doorbell = Doorbell(executive, name)
         for vc in self.boards:
-            for queue in vc.task_b.input_queues():
+            for queue in vc.task_b.input_queues:
                 queue.on_put = doorbell.ring
             vc.hardware.response_link.on_send = doorbell.ring
         self.doorbell = doorbell
