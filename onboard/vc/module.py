@@ -212,21 +212,12 @@ class VitalControl:
         if skip and config.task_b_period_s == config.task_c_period_s:
             tick = QuietTick((self,))
             self.tick = tick
-            return (
-                tick.register(
-                    executive,
-                    "vc.tick",
-                    period_s=config.task_b_period_s,
-                    phase_s=phase_s,
-                    priority=TASK_B_PRIORITY,
-                ),
-                executive.add_task(
-                    "vc.A",
-                    tick.after(self._run_a),
-                    period_s=config.task_a_period_s,
-                    phase_s=phase_s,
-                    priority=TASK_A_PRIORITY,
-                ),
+            return tick.register(
+                executive,
+                period_s=config.task_b_period_s,
+                phase_s=phase_s,
+                priority=TASK_B_PRIORITY,
+                task_a=(("vc.A", self._run_a, config.task_a_period_s, TASK_A_PRIORITY),),
             )
         return (
             executive.add_task(

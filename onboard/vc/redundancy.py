@@ -281,19 +281,19 @@ class TwoOutOfTwo:
         self.tick = tick
         tick.register(
             executive,
-            "vc.tick",
             period_s=self.config.period_s,
             phase_s=phase_s,
             priority=TASK_B_PRIORITY,
+            task_a=tuple(
+                (
+                    f"vc{index}.A",
+                    self._unless_halted(index, replica.task_a.step),
+                    replica.config.task_a_period_s,
+                    TASK_A_PRIORITY,
+                )
+                for index, replica in enumerate(self.replicas)
+            ),
         )
-        for index, replica in enumerate(self.replicas):
-            executive.add_task(
-                f"vc{index}.A",
-                tick.after(self._unless_halted(index, replica.task_a.step)),
-                period_s=replica.config.task_a_period_s,
-                phase_s=phase_s,
-                priority=TASK_A_PRIORITY,
-            )
 
     def _kicking(self, index: int, step: Callable[[float], object]) -> Callable[[float], object]:
         def run(now_s: float) -> None:

@@ -38,6 +38,11 @@ if TYPE_CHECKING:
 
 __all__ = ["Doorbell", "QuietTick"]
 
+TICK_NAME = "vc.tick"
+
+TaskA = tuple[str, Callable[[int], None], float, int]
+"""A board's Task A for :meth:`QuietTick.register`: name, step, period [s], priority."""
+
 MARGIN_S = 1e-6
 """How much earlier than a time horizon the tick wakes: waking early costs one release,
 waking late would be wrong, and the horizons are floats."""
@@ -72,24 +77,41 @@ class QuietTick:
         self._last_ns = 0
 
     def register(
-        self, executive: Executive, name: str, *, period_s: float, phase_s: float, priority: int
-    ) -> Task:
-        """Add the tick to ``executive``; ring its doorbell on every input of B."""
+        self,
+        executive: Executive,
+        *,
+        period_s: float,
+        phase_s: float,
+        priority: int,
+        task_a: Sequence[TaskA],
+    ) -> tuple[Task, ...]:
+        """Add ``vc.tick`` to ``executive``, then each board's Task A (``task_a``: its name,
+        step, period and priority); ring the tick's doorbell on every input of B and after
+        every release of A (the voter compares A's state). Returns the tasks."""
         self._executive = executive
         self._task = executive.add_task(
-            name, self._release, period_s=period_s, phase_s=phase_s, priority=priority
+            TICK_NAME, self._release, period_s=period_s, phase_s=phase_s, priority=priority
         )
-        doorbell = Doorbell(executive, name)
+        doorbell = Doorbell(executive, TICK_NAME)
         for vc in self.boards:
             for queue in vc.task_b.input_queues:
                 queue.on_put = doorbell.ring
             vc.hardware.response_link.on_send = doorbell.ring
         self.doorbell = doorbell
-        return self._task
+        tasks = [self._task]
+        for name, step, a_period_s, a_priority in task_a:
+            tasks.append(
+                executive.add_task(
+                    name,
+                    self._ringing_after(step),
+                    period_s=a_period_s,
+                    phase_s=phase_s,
+                    priority=a_priority,
+                )
+            )
+        return tuple(tasks)
 
-    def after(self, step: Callable[[int], None]) -> Callable[[int], None]:
-        """``step`` (Task A's), then the doorbell: the voter compares A's state."""
-
+    def _ringing_after(self, step: Callable[[int], None]) -> Callable[[int], None]:
         def run(release_ns: int) -> None:
             step(release_ns)
             self.doorbell.ring()
