@@ -1,20 +1,20 @@
 """The trackside of a whole-stack run, and the REST calls the operator and the RBC make.
 
 The trackside service runs in this process (its FastAPI app behind a ``TestClient``, on a
-SQLite file in the run's scratch directory, on the run's Zenoh session). The harness logs in as
-an admin, holds the vehicle as a driver at the console does, and makes the REST calls of the
-scenario: movement authorities and TSRs through the RBC's routes, journeys, commands. The run's
-line is imported into that database through the lines route at each start (a built-in line is
-there already; a line of a file or a user's database is stored as the trackside of a real
-deployment would have it), so the trackside plans on the line the vehicle drives on. After
-each call that sends the vehicle a message it waits, in wall time, until the vehicle has it, so
-that the message is taken at a tick fixed by simulated time.
+SQLite file in the run's scratch directory, on the run's Zenoh session). The harness acts as an
+admin without a password, through a token it issues in the database it owns; it holds the
+vehicle as a driver at the console does, and makes the REST calls of the scenario: movement
+authorities and TSRs through the RBC's routes, journeys, commands. The run's line is imported
+into that database through the lines route at each start (a built-in line is there already; a
+line of a file or a user's database is stored as the trackside of a real deployment would have
+it), so the trackside plans on the line the vehicle drives on. After each call that sends the
+vehicle a message it waits, in wall time, until the vehicle has it, so that the message is
+taken at a tick fixed by simulated time.
 """
 
 from __future__ import annotations
 
 import copy
-import secrets
 import threading
 import time
 from pathlib import Path
@@ -22,15 +22,20 @@ from typing import Any
 
 import zenoh
 from fastapi.testclient import TestClient
+from sqlalchemy.orm import Session, sessionmaker
 
 from deploy.scenario.run_context import RunContext, ScenarioRunError, forward_m, wait_for
 from deploy.scenario.schema import TemporarySpeedRestriction
 from protocol.units import MPS_PER_KMH
 from trackside.config import Settings
 from trackside.main import create_app
+from trackside.models import Role
+from trackside.services import audit, users
 
 __all__ = ["JOURNEY_TIMEOUT_S", "TracksideHarness"]
 
+OPERATOR_USER = "scenario"
+"""The run's operator: an admin of the run's trackside, without a password."""
 JOURNEY_TIMEOUT_S = 30.0
 """How long, in wall time, the operator waits for the vehicle's journey acknowledgement [s]: the
 REST route's longest. The vehicle answers at its next commands tick, within the one slice run
@@ -55,8 +60,11 @@ class TracksideHarness:
         self.settings = Settings(
             database_url=f"sqlite:///{scratch / 'trackside.db'}",
             zenoh_connect=(),
-            admin_user="scenario",
-            admin_password=secrets.token_urlsafe(16),
+            # No bootstrap admin: the run's operator is a user without a password, holding a
+            # token issued in the database the run owns (start): no password hashed at start-up
+            # nor checked at a login (two scrypt hashes, 0.9 s of a bologna-ring run).
+            admin_user=None,
+            admin_password=None,
             simulated_operators=simulated,
             simulated_operator_reaction_s=spec.operator.reaction_s,
             simulated_operator_thread=False,
@@ -85,13 +93,21 @@ class TracksideHarness:
         client = TestClient(create_app(self.settings, zenoh_session=self.zenoh_session))
         client.__enter__()
         self.client = client
-        password = self.settings.admin_password
-        assert password is not None
-        answer = client.post(
-            "/api/v1/auth/token",
-            data={"username": "scenario", "password": password.get_secret_value()},
+        factory: sessionmaker[Session] = client.app.state.session_factory  # type: ignore[attr-defined]
+        with factory() as db, db.begin():
+            user = users.ensure_token_user(db, OPERATOR_USER, Role.ADMIN)
+            token = users.issue_token(db, user, self.settings.token_ttl_s)
+        audit.record(
+            factory,
+            audit.audit_entry(
+                user=OPERATOR_USER,
+                vehicle_id=None,
+                action="token",
+                request={"issued_by": "scenario run"},
+                result=audit.AuditResult.ACCEPTED,
+            ),
         )
-        self.headers = {"Authorization": f"Bearer {answer.json()['access_token']}"}
+        self.headers = {"Authorization": f"Bearer {token}"}
         self._selected = False
         self._store_line()
 

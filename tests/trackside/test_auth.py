@@ -14,6 +14,7 @@ from starlette.types import Message, Receive, Scope, Send
 from tests.trackside.conftest import ADMIN, MakeClient, login
 from trackside.config import Settings
 from trackside.main import create_app
+from trackside.models import Role
 from trackside.services import users
 
 
@@ -164,3 +165,21 @@ def test_what_a_route_writes_is_committed_before_its_answer_is_sent(
     finally:
         engine.dispose()
     assert seen == [ADMIN[0]]
+
+
+def test_a_token_user_has_no_password_to_log_in_with(client: TestClient) -> None:
+    """A user made by ``ensure_token_user`` (a scenario run's operator) acts through the token
+    issued to it; no password logs it in, not even the empty hash's own text."""
+    factory = client.app.state.session_factory  # type: ignore[attr-defined]
+    with factory() as db, db.begin():
+        user = users.ensure_token_user(db, "runner", Role.ADMIN)
+        assert users.ensure_token_user(db, "runner", Role.ADMIN).id == user.id
+        token = users.issue_token(db, user, 60.0)
+    me = client.get("/api/v1/users/me", headers={"Authorization": f"Bearer {token}"})
+    assert me.json() == {"username": "runner", "role": "admin", "disabled": False}
+    for password in ("", "!", users.NO_PASSWORD, "runner"):
+        answer = client.post(
+            "/api/v1/auth/token", data={"username": "runner", "password": password}
+        )
+        assert answer.status_code in (401, 422)  # 422: an empty form field
+        assert "access_token" not in answer.json()

@@ -32,6 +32,7 @@ from trackside.security import (
 __all__ = [
     "authenticate",
     "create_user",
+    "ensure_token_user",
     "ensure_user",
     "get_user",
     "issue_token",
@@ -50,6 +51,11 @@ _DUMMY_HASH = (
 """What an unknown user's password is checked against, so that a wrong username costs what a
 wrong password does: the hash, at today's cost, of a random password nobody kept (written here
 rather than made at import, which cost half a second of scrypt in every process)."""
+
+
+NO_PASSWORD = "!"
+"""The password hash of a user who has none (:func:`ensure_token_user`): no hash of ours, so no
+password matches it."""
 
 
 def _now() -> datetime:
@@ -86,9 +92,25 @@ def ensure_user(db: Session, username: str, password: str, role: Role) -> User:
     return existing if existing is not None else create_user(db, username, password, role)
 
 
+def ensure_token_user(db: Session, username: str, role: Role) -> User:
+    """The user of that name, created with this role and *no password* if missing: it cannot
+    log in, and acts only through the tokens :func:`issue_token` gives it (a scenario run's
+    operator, which owns the service's database, holds one without a password to type or
+    hash). An admin's password reset gives it one."""
+    existing = db.scalar(select(User).where(User.username == username))
+    if existing is not None:
+        return existing
+    if not username or len(username) > 64:
+        raise ValueError("username must have 1 to 64 characters")
+    user = User(username=username, password_hash=NO_PASSWORD, role=role.value, created_at=_now())
+    db.add(user)
+    db.flush()
+    return user
+
+
 def authenticate(db: Session, username: str, password: str) -> User:
     user = db.scalar(select(User).where(User.username == username))
-    if user is None:
+    if user is None or user.password_hash == NO_PASSWORD:
         verify_password(password, _DUMMY_HASH)  # same cost whether or not the user exists
         raise AuthenticationError("wrong username or password")
     if not verify_password(password, user.password_hash):
