@@ -81,6 +81,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass, fields
 from enum import StrEnum
+from typing import NamedTuple
 
 from onboard.etcs._exceptions import EtcsInputError, TrainDataError
 from onboard.etcs.odometry import SUBSET_041_ACCURACY, OdometryAccuracy
@@ -252,8 +253,9 @@ class OdometerOutput:
         return self.adhesion is WheelAdhesion.SLIDE
 
 
-@dataclass(frozen=True, slots=True)
-class _Sample:
+class _Sample(NamedTuple):
+    """One counted reading (a tuple: a thousand are made per simulated second)."""
+
     time_s: float
     pulses_front: int
     pulses_rear: int
@@ -296,7 +298,7 @@ class Odometer:
         self._onset_acceleration_mps2 = 0.0
         self._last_criterion_s = -math.inf
         self._low_mps = self._high_mps = 0.0
-        self.output = OdometerOutput(
+        self._output: OdometerOutput | None = OdometerOutput(
             time_s=start_s,
             distance_m=0.0,
             speed_mps=0.0,
@@ -309,6 +311,31 @@ class Odometer:
             slip_slide_over_m=0.0,
             slip_slide_under_m=0.0,
         )
+        self._last: tuple[_Sample, float, WheelAdhesion] | None = None
+        """The newest sample, its acceleration [m/s²] and the adhesion then: the output is
+        made of them when read, not at each reading counted."""
+
+    @property
+    def output(self) -> OdometerOutput:
+        """The estimate at the newest reading counted."""
+        output = self._output
+        if output is None:
+            assert self._last is not None
+            sample, acceleration_mps2, adhesion = self._last
+            output = self._output = OdometerOutput(
+                time_s=sample.time_s,
+                distance_m=sample.distance_m,
+                speed_mps=max(sample.speed_mps, 0.0),
+                acceleration_mps2=acceleration_mps2,
+                front_axle_speed_mps=sample.front_mps,
+                rear_axle_speed_mps=sample.rear_mps,
+                pulses_front=sample.pulses_front,
+                pulses_rear=sample.pulses_rear,
+                adhesion=adhesion,
+                slip_slide_over_m=sample.over_m,
+                slip_slide_under_m=sample.under_m,
+            )
+        return output
 
     def update(self, readings: Iterable[WheelReading]) -> OdometerOutput:
         """Count the readings since the last update (in time order) and estimate.
@@ -492,7 +519,7 @@ class Odometer:
         low_mps, high_mps = self._wheel_bounds_mps(speed_mps)
         half_mps = p.axle_difference_limit_mps(speed_mps) / 2.0
         self._low_mps, self._high_mps = max(low_mps - half_mps, 0.0), high_mps + half_mps
-        acceleration_mps2 = self.output.acceleration_mps2
+        acceleration_mps2 = 0.0 if self._last is None else self._last[1]
         self._onset_acceleration_mps2 = acceleration_mps2
         if acceleration_mps2 >= p.motoring_evidence_mps2:
             self._regime = WheelAdhesion.SLIP
@@ -509,16 +536,5 @@ class Odometer:
         if keep_from > len(self._times) // 2:
             del self._samples[: keep_from - 1]
             del self._times[: keep_from - 1]
-        self.output = OdometerOutput(
-            time_s=sample.time_s,
-            distance_m=sample.distance_m,
-            speed_mps=max(sample.speed_mps, 0.0),
-            acceleration_mps2=acceleration_mps2,
-            front_axle_speed_mps=sample.front_mps,
-            rear_axle_speed_mps=sample.rear_mps,
-            pulses_front=sample.pulses_front,
-            pulses_rear=sample.pulses_rear,
-            adhesion=self._adhesion,
-            slip_slide_over_m=sample.over_m,
-            slip_slide_under_m=sample.under_m,
-        )
+        self._last = (sample, acceleration_mps2, self._adhesion)
+        self._output = None
