@@ -98,6 +98,8 @@ class AutonomousDriving:
         self.permitted_speed_mps = math.inf
         """The ETCS permitted speed [m/s], a ceiling over the whole horizon."""
         self._sampled: tuple[float, list[float], list[float]] | None = None
+        self._samples: dict[float, tuple[float, float]] = {}
+        """The plan's reference at the last horizon's stages, by instant [s]."""
         self._final_braking_mps2: float | None = None
         """The plan's deceleration into the stop the reference comes to rest at [m/s²]."""
 
@@ -153,9 +155,18 @@ class AutonomousDriving:
         """The plan's distances and speeds at the horizon's stages from ``now_s``, sampled once
         a step for the reference and the final approach's cap."""
         if self._sampled is None or self._sampled[0] != now_s:
-            samples = [self.plan.reference(float(t)) for t in now_s + self._offsets_s]
-            self._sampled = (now_s, [d for d, _ in samples], [v for _, v in samples])
+            # The next step's stages are mostly this step's, one stage on: the samples at the
+            # very same instants (float for float) are taken again, not recomputed.
+            reference, previous = self.plan.reference, self._samples
+            samples = {t: previous.get(t) or reference(t) for t in self._stage_times(now_s)}
+            self._samples = samples
+            values = samples.values()
+            self._sampled = (now_s, [d for d, _ in values], [v for _, v in values])
         return self._sampled[1], self._sampled[2]
+
+    def _stage_times(self, now_s: float) -> list[float]:
+        times: list[float] = (now_s + self._offsets_s).tolist()
+        return times
 
     def _ceilings(
         self, positions: npt.NDArray[np.float64], speed_mps: float | None

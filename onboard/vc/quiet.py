@@ -17,7 +17,7 @@ that ``now_s <= threshold`` is, float for float, the full cycle's "not yet".
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 from onboard.runtime import Executive
 from onboard.runtime.clock import RealTimeClock
@@ -53,14 +53,15 @@ class QuietCycles:
         fingerprint: tuple[object, ...],
         *,
         took_input: bool,
-        thresholds: Iterable[float],
+        thresholds: Callable[[], Iterable[float]],
     ) -> None:
         """Note a full cycle at ``now_s``: its state's ``fingerprint`` afterwards, whether it
-        consumed an input, and the thresholds of its ``now_s > threshold`` comparisons."""
+        consumed an input, and the thresholds of its ``now_s > threshold`` comparisons (asked
+        for only after a fixed point)."""
         fixed = not took_input and fingerprint == self._fingerprint
         self._fingerprint = fingerprint
         if not fixed:
             self.until_s = -math.inf
             return
         # A threshold already crossed stays crossed: only those ahead can end the quiet.
-        self.until_s = min((t for t in thresholds if now_s <= t), default=math.inf)
+        self.until_s = min((t for t in thresholds() if now_s <= t), default=math.inf)

@@ -257,11 +257,19 @@ class TaskB:
         self._fused_stale = (
             fused is None or now_s - fused.arrived_s > self.config.fused_speed_timeout_s
         )
+        self.quiet.after_full_cycle(
+            now_s,
+            self._fingerprint(status),
+            took_input=self._took_input,
+            thresholds=self._thresholds_s,
+        )
+
+    def _thresholds_s(self) -> list[float]:
+        """The instants past which a cycle with no input would differ (a deadline missed, the
+        tachometer timed out)."""
         thresholds = self._exchange.thresholds_s()
         thresholds.append(self._odometry.timeout_threshold_s())
-        self.quiet.after_full_cycle(
-            now_s, self._fingerprint(status), took_input=self._took_input, thresholds=thresholds
-        )
+        return thresholds
 
     def _fingerprint(self, status: SupervisionStatus) -> tuple[object, ...]:
         """Every piece of state a cycle can change, and its status but for the time."""

@@ -242,14 +242,17 @@ class TaskC:
                 now_s,
                 self._fingerprint(actuation),
                 took_input=False,
-                thresholds=(
-                    self._switch_started_s
-                    + self.config.relay_verification_timeout_s
-                    + TIME_TOLERANCE_S,
-                    self._rearm_started_s + self.config.rearm_timeout_s + TIME_TOLERANCE_S,
-                ),
+                thresholds=self._thresholds_s,
             )
         return actuation
+
+    def _thresholds_s(self) -> tuple[float, float]:
+        """The instants past which a cycle with the same input would differ (the relay's
+        verification, the rearm timed out)."""
+        return (
+            self._switch_started_s + self.config.relay_verification_timeout_s + TIME_TOLERANCE_S,
+            self._rearm_started_s + self.config.rearm_timeout_s + TIME_TOLERANCE_S,
+        )
 
     def quiet_horizon_s(self) -> float:
         """Until when [s] the cycles stay quiet while Task B's status does (−inf: the next
