@@ -158,15 +158,12 @@ class AutonomousDriving:
             # The next step's stages are mostly this step's, one stage on: the samples at the
             # very same instants (float for float) are taken again, not recomputed.
             reference, previous = self.plan.reference, self._samples
-            samples = {t: previous.get(t) or reference(t) for t in self._stage_times(now_s)}
+            times: list[float] = (now_s + self._offsets_s).tolist()
+            samples = {t: previous.get(t) or reference(t) for t in times}
             self._samples = samples
             values = samples.values()
             self._sampled = (now_s, [d for d, _ in values], [v for _, v in values])
         return self._sampled[1], self._sampled[2]
-
-    def _stage_times(self, now_s: float) -> list[float]:
-        times: list[float] = (now_s + self._offsets_s).tolist()
-        return times
 
     def _ceilings(
         self, positions: npt.NDArray[np.float64], speed_mps: float | None
