@@ -138,6 +138,7 @@ class NmpcController:
         self.config = config or NmpcConfig()
         self.stats = NmpcStats()
         self._step = self._dynamics()
+        self._rollout = self._rollout_function()
         problem, bounds = self._build()
         self._upper_x = bounds["ubx"]
         # One NLP, two iteration caps: casadi fixes a solver's options when it is made.
@@ -185,6 +186,18 @@ class NmpcController:
         k4 = rate(start + dt * k3)
         end = start + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         return ca.Function("step", [state, increment, track], [end])
+
+    def _rollout_function(self) -> ca.Function:
+        """The cold start's guess: the model run over the horizon with the demand held, its
+        speed kept within the predicted speeds' bounds at each step; (x0, track forces [kN],
+        1 × N) → the states after each step (4 × N). One call: a loop of N calls of the step
+        took 2.7 ms, most of a cold solve."""
+        state, track = ca.SX.sym("x", STATE_SIZE), ca.SX.sym("ft")
+        low, high = self.config.min_predicted_speed_mps, MAX_SPEED_MPS
+        end = self._step(state, 0.0, track)
+        held = ca.vertcat(end[0], ca.fmin(ca.fmax(end[1], low), high), end[2], end[3])
+        stage = ca.Function("rolled", [state, track], [held])
+        return stage.mapaccum("rollout", self.config.horizon_steps)
 
     def _build(self) -> tuple[dict[str, Any], dict[str, FloatArray]]:
         """The NLP (for ``ca.nlpsol``) and its bounds, stage by stage: the variables
@@ -360,14 +373,9 @@ class NmpcController:
             # Cold start: the model rolled out with the demand held, so that the SQP starts
             # from a trajectory that meets the dynamics.
             guess = np.zeros(self._variables)
-            low, high = self.config.min_predicted_speed_mps, MAX_SPEED_MPS
-            x = state
-            rows = [x]
-            for k in range(n):
-                x = np.asarray(self._step(x, 0.0, float(track_kn[k])), dtype=float).ravel()
-                x[1] = min(max(x[1], low), high)
-                rows.append(x)
-            guess[self._state_index] = np.array(rows)
+            rolled = np.asarray(self._rollout(state, track_kn[:n].reshape(1, -1)), dtype=float)
+            rows = np.vstack([state, rolled.T])
+            guess[self._state_index] = rows
             return guess
         states = self._guess[self._state_index]
         increments = self._guess[self._increment_index]
