@@ -115,8 +115,9 @@ class TaskB:
         self._read_eb_released = read_eb_released
         self._read_etcs_inserted = read_etcs_inserted
         self._actuation = actuation
-        self._odometry = TachometerOdometry(config, start_s=start_s)
-        self._exchange = ExchangeCheck(config)
+        self._odometry = odometry = TachometerOdometry(config, start_s=start_s)
+        self._exchange = exchange = ExchangeCheck(config)
+        self._limits_s = lambda: [*exchange.thresholds_s(), odometry.timeout_threshold_s()]
         self._isolated_since_s: float | None = None
         self._previous_live: frozenset[EbCondition] = frozenset()
         self._eb_conditions: set[EbCondition] = set()
@@ -258,18 +259,8 @@ class TaskB:
             fused is None or now_s - fused.arrived_s > self.config.fused_speed_timeout_s
         )
         self.quiet.after_full_cycle(
-            now_s,
-            self._fingerprint(status),
-            took_input=self._took_input,
-            thresholds=self._thresholds_s,
+            now_s, self._fingerprint(status), took_input=self._took_input, thresholds=self._limits_s
         )
-
-    def _thresholds_s(self) -> list[float]:
-        """The instants past which a cycle with no input would differ (a deadline missed, the
-        tachometer timed out)."""
-        thresholds = self._exchange.thresholds_s()
-        thresholds.append(self._odometry.timeout_threshold_s())
-        return thresholds
 
     def _fingerprint(self, status: SupervisionStatus) -> tuple[object, ...]:
         """Every piece of state a cycle can change, and its status but for the time."""
