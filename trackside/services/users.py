@@ -67,16 +67,14 @@ def _check_password(password: str) -> None:
         raise ValueError("password must have at least 4 characters")
 
 
-def create_user(db: Session, username: str, password: str, role: Role) -> User:
+def _check_username(username: str) -> None:
     if not username or len(username) > 64:
         raise ValueError("username must have 1 to 64 characters")
-    _check_password(password)
-    user = User(
-        username=username,
-        password_hash=hash_password(password),
-        role=role.value,
-        created_at=_now(),
-    )
+
+
+def _add_user(db: Session, username: str, password_hash: str, role: Role) -> User:
+    """A new user (``password_hash`` made or :data:`NO_PASSWORD`); a taken name is a conflict."""
+    user = User(username=username, password_hash=password_hash, role=role.value, created_at=_now())
     db.add(user)
     try:
         db.flush()
@@ -84,6 +82,12 @@ def create_user(db: Session, username: str, password: str, role: Role) -> User:
         db.rollback()
         raise ConflictError(f"user {username!r} exists") from exc
     return user
+
+
+def create_user(db: Session, username: str, password: str, role: Role) -> User:
+    _check_username(username)
+    _check_password(password)
+    return _add_user(db, username, hash_password(password), role)
 
 
 def ensure_user(db: Session, username: str, password: str, role: Role) -> User:
@@ -100,12 +104,8 @@ def ensure_token_user(db: Session, username: str, role: Role) -> User:
     existing = db.scalar(select(User).where(User.username == username))
     if existing is not None:
         return existing
-    if not username or len(username) > 64:
-        raise ValueError("username must have 1 to 64 characters")
-    user = User(username=username, password_hash=NO_PASSWORD, role=role.value, created_at=_now())
-    db.add(user)
-    db.flush()
-    return user
+    _check_username(username)
+    return _add_user(db, username, NO_PASSWORD, role)
 
 
 def authenticate(db: Session, username: str, password: str) -> User:
