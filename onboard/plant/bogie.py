@@ -26,6 +26,7 @@ each substep. It is implicit Euler on the linear part (so L-stable) and first-or
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
@@ -34,15 +35,23 @@ import numpy as np
 from onboard.plant.bogie_parameters import (
     DOF,
     URV_BOGIE_PARAMETERS,
+    BogieMatrices,
     BogieParameters,
     Matrix,
     assemble_matrices,
 )
-from onboard.plant.contact import creepage, longitudinal_creep_force, saturated_sign
+from onboard.plant.contact import creepage, longitudinal_creep_force
 from onboard.plant.interfaces import ActuatorCommands, BogieTruth
 from protocol.units import GRAVITY_MPS2
 
 __all__ = ["DEFAULT_SUBSTEP_S", "BogieEnergy", "BogieModel", "Integrator"]
+
+try:  # numpy's own gufunc behind numpy.linalg.solve (see _solve)
+    from numpy.linalg import _umath_linalg
+
+    _SOLVE1: Callable[..., Matrix] | None = _umath_linalg.solve1
+except (ImportError, AttributeError):  # a numpy that moved it: the public function
+    _SOLVE1 = None
 
 DEFAULT_SUBSTEP_S = 0.002
 """Largest substep [s] of the linearly implicit scheme; ``step`` splits longer steps evenly."""
@@ -81,6 +90,33 @@ class BogieEnergy:
         """Motor work not accounted for by stored energy, gravity and losses [J]."""
         stored = self.kinetic_j + self.elastic_j - self.initial_mechanical_j
         return self.motor_work_j - stored + self.gravity_work_j - self.dissipated_j
+
+
+def _solve(system: Matrix, rhs: Matrix) -> Matrix:
+    """``numpy.linalg.solve(system, rhs)`` for a float64 square system and vector, the same
+    bits: the same LAPACK routine through numpy's gufunc, called without the public function's
+    checks and error-state context, which took over half of its time (docs/perf.md, "The
+    bogie"). A singular system makes the gufunc's result non-finite: it is then solved again
+    through the public function, which raises numpy's ``LinAlgError``."""
+    if _SOLVE1 is not None:
+        solution: Matrix = _SOLVE1(system, rhs, signature="dd->d")
+        if math.isfinite(float(solution @ solution)):
+            return solution
+    return np.linalg.solve(system, rhs).astype(np.float64, copy=False)
+
+
+class _Gravity:
+    """Gravity's generalised forces on one gradient, worked out once a step instead of at each
+    substep: along the track, across it (the share of the load the incline takes off), and
+    their sum as the energy bookkeeping takes it. The same products as before, so the same
+    bits."""
+
+    __slots__ = ("along", "force", "normal")
+
+    def __init__(self, matrices: BogieMatrices, sin_a: float, cos_a: float) -> None:
+        self.along = (GRAVITY_MPS2 * sin_a) * matrices.gravity_along_track
+        self.normal = (GRAVITY_MPS2 * (cos_a - 1.0)) * matrices.gravity_normal
+        self.force = -(GRAVITY_MPS2 * sin_a) * matrices.gravity_along_track + self.normal
 
 
 class _Linearised:
@@ -159,12 +195,17 @@ class BogieModel:
         self._motor_lagged_nm = [0.0, 0.0]
         self._pressure_pa = [0.0, 0.0]
         self._state = _Linearised()
+        self._contact_constants = (
+            parameters.static_axle_load_n,
+            parameters.contact_stiffness_n_per_m,
+            parameters.contact_damping_ns_per_m,
+        )
         self._traction_j = 0.0
         self._regen_j = 0.0
         self._losses = {"damping": 0.0, "creep": 0.0, "rolling": 0.0, "brake": 0.0, "aero": 0.0}
         self._gravity_work_j = 0.0
         self._initial_mechanical_j = self._kinetic_j() + self._elastic_j()
-        self._evaluate(0.0, 0.0, 1.0)
+        self._evaluate(_Gravity(self.matrices, 0.0, 0.0), 1.0)
 
     # -- public -------------------------------------------------------------------------------
 
@@ -188,13 +229,14 @@ class BogieModel:
         torques = (commands.motor_torque_front_nm, commands.motor_torque_rear_nm)
         pressures = (commands.brake_pressure_front_pa, commands.brake_pressure_rear_pa)
         substep = self._implicit if self.integrator == "linearly_implicit" else self._explicit
+        gravity = _Gravity(self.matrices, sin_a, cos_a)
         for _ in range(count):
             self._lag_actuators(h, torques, pressures)
-            self._evaluate(sin_a, cos_a, adhesion_factor)
-            substep(h, sin_a, cos_a)
+            self._evaluate(gravity, adhesion_factor)
+            substep(h, gravity)
             self._time_s += h
         self._acceleration_mps2 = (float(self._v[0]) - speed_before) / dt_s
-        self._evaluate(sin_a, cos_a, adhesion_factor)
+        self._evaluate(gravity, adhesion_factor)
 
     def truth(self) -> BogieTruth:
         """The state and what the model did, as of the end of the last step."""
@@ -253,17 +295,13 @@ class BogieModel:
             reference = min(max(pressures[axle], 0.0), p.brake_max_pressure_pa)
             self._pressure_pa[axle] += (reference - self._pressure_pa[axle]) * brake_blend
 
-    def _motor_torque_nm(self, axle: int, wheel_speed_radps: float) -> float:
-        """Lagged reference limited by the torque–speed curve (max torque, then max power)."""
-        p = self.parameters
-        limit = p.motor_max_torque_nm
-        speed = abs(wheel_speed_radps)
-        if speed * limit > p.motor_max_power_w:
-            limit = p.motor_max_power_w / speed
-        return min(max(self._motor_lagged_nm[axle], -limit), limit)
+    def _evaluate(self, gravity: _Gravity, adhesion_factor: float) -> None:
+        """Fill ``self._state`` with Q and its stiff slopes at the current state.
 
-    def _evaluate(self, sin_a: float, cos_a: float, adhesion_factor: float) -> None:
-        """Fill ``self._state`` with Q and its stiff slopes at the current state."""
+        The hot path of the bogie (six times a 10 ms step): the parameters are read as locals
+        and the saturated signs written out, the same arithmetic as
+        :func:`~onboard.plant.contact.saturated_sign`. The motor's torque is its lagged
+        reference limited by the torque–speed curve (max torque, then max power)."""
         p = self.parameters
         m = self.matrices
         s = self._state
@@ -271,23 +309,32 @@ class BogieModel:
         v = self._v.tolist()
         radius = p.wheel_radius_m
         beta = p.sign_saturation_radps
+        static_load, contact_stiffness, contact_damping = self._contact_constants
+        contact, brake_gain_m3 = p.contact, p.brake_gain_m3
+        rolling_coefficient = p.rolling_resistance_coefficient
+        max_torque, max_power = p.motor_max_torque_nm, p.motor_max_power_w
+        pressures, lagged = self._pressure_pa, self._motor_lagged_nm
+        pitch_speed = v[_BOGIE_PITCH]
         forces = [0.0] * DOF
         for axle, (ix, iz, ispin) in enumerate(_WHEELSETS):
-            normal = (
-                p.static_axle_load_n
-                - p.contact_stiffness_n_per_m * q[iz]
-                - p.contact_damping_ns_per_m * v[iz]
-            )
-            slip = v[ix] - radius * v[ispin]
+            normal = static_load - contact_stiffness * q[iz] - contact_damping * v[iz]
+            spin = v[ispin]
+            slip = v[ix] - radius * spin
             creep, creep_slope = longitudinal_creep_force(
-                slip, v[ix], normal, p.contact, adhesion_factor
+                slip, v[ix], normal, contact, adhesion_factor
             )
-            relative_spin = v[ispin] + v[_BOGIE_PITCH]
-            brake_gain = p.brake_gain_m3 * self._pressure_pa[axle]
-            brake = -brake_gain * saturated_sign(relative_spin, beta)
-            rolling_gain = max(normal, 0.0) * radius * p.rolling_resistance_coefficient
-            rolling = -rolling_gain * saturated_sign(v[ispin], beta)
-            motor = self._motor_torque_nm(axle, v[ispin])
+            relative_spin = spin + pitch_speed
+            brake_gain = brake_gain_m3 * pressures[axle]
+            ratio = relative_spin / beta
+            brake = -brake_gain * (1.0 if ratio > 1.0 else -1.0 if ratio < -1.0 else ratio)
+            rolling_gain = max(normal, 0.0) * radius * rolling_coefficient
+            ratio = spin / beta
+            rolling = -rolling_gain * (1.0 if ratio > 1.0 else -1.0 if ratio < -1.0 else ratio)
+            limit = max_torque
+            speed = abs(spin)
+            if speed * limit > max_power:
+                limit = max_power / speed
+            motor = min(max(lagged[axle], -limit), limit)
             forces[ix] += creep
             forces[ispin] += motor + brake + rolling - radius * creep
             forces[_BOGIE_PITCH] += motor + brake
@@ -295,7 +342,7 @@ class BogieModel:
             s.brake[axle] = brake
             s.brake_slope[axle] = -brake_gain / beta if abs(relative_spin) < beta else 0.0
             s.rolling[axle] = rolling
-            s.rolling_slope[axle] = -rolling_gain / beta if abs(v[ispin]) < beta else 0.0
+            s.rolling_slope[axle] = -rolling_gain / beta if speed < beta else 0.0
             s.motor[axle], s.normal[axle] = motor, normal
         air_speed = float(m.carbody_longitudinal @ self._v)
         dynamic = 0.5 * p.air_density_kgpm3 * air_speed * abs(air_speed)
@@ -303,10 +350,7 @@ class BogieModel:
         s.lift = abs(dynamic) * p.lift_area_m2
         forces[1] += s.lift
         s.forces = (
-            np.array(forces)
-            - s.drag * m.carbody_longitudinal
-            - (GRAVITY_MPS2 * sin_a) * m.gravity_along_track
-            + (GRAVITY_MPS2 * (cos_a - 1.0)) * m.gravity_normal
+            np.array(forces) - s.drag * m.carbody_longitudinal - gravity.along + gravity.normal
         )
 
     # -- integration --------------------------------------------------------------------------
@@ -323,7 +367,7 @@ class BogieModel:
             self._systems[h] = cached
         return cached
 
-    def _implicit(self, h: float, sin_a: float, cos_a: float) -> None:
+    def _implicit(self, h: float, gravity: _Gravity) -> None:
         base, damping_h = self._system(h)
         system = base.copy()
         s = self._state
@@ -339,23 +383,21 @@ class BogieModel:
             system[_BOGIE_PITCH, ispin] -= brake
             system[_BOGIE_PITCH, _BOGIE_PITCH] -= brake
         rhs = h * (s.forces - damping_h @ self._v - self.matrices.stiffness @ self._q)
-        velocity = self._v + np.linalg.solve(system, rhs)
-        self._account(h, velocity, sin_a, cos_a, linearised=True)
+        velocity = self._v + _solve(system, rhs)
+        self._account(h, velocity, gravity, linearised=True)
         self._v = velocity
         self._q = self._q + h * velocity
 
-    def _explicit(self, h: float, sin_a: float, cos_a: float) -> None:
+    def _explicit(self, h: float, gravity: _Gravity) -> None:
         m = self.matrices
         s = self._state
         acceleration = self._mass_inverse @ (s.forces - m.damping @ self._v - m.stiffness @ self._q)
         velocity = self._v + h * acceleration
-        self._account(h, self._v, sin_a, cos_a, linearised=False)
+        self._account(h, self._v, gravity, linearised=False)
         self._q = self._q + h * self._v
         self._v = velocity
 
-    def _account(
-        self, h: float, velocity: Matrix, sin_a: float, cos_a: float, *, linearised: bool
-    ) -> None:
+    def _account(self, h: float, velocity: Matrix, gravity: _Gravity, *, linearised: bool) -> None:
         """Add this substep's work of every force, evaluated with the substep's velocities."""
         s = self._state
         m = self.matrices
@@ -382,11 +424,7 @@ class BogieModel:
         air_speed = float(m.carbody_longitudinal @ velocity)
         losses["aero"] += (s.drag * air_speed - s.lift * v[1]) * h
         losses["damping"] += float(velocity @ m.damping @ velocity) * h
-        gravity = (
-            -(GRAVITY_MPS2 * sin_a) * m.gravity_along_track
-            + (GRAVITY_MPS2 * (cos_a - 1.0)) * m.gravity_normal
-        )
-        self._gravity_work_j += float(gravity @ velocity) * h
+        self._gravity_work_j += float(gravity.force @ velocity) * h
 
     def _kinetic_j(self) -> float:
         return 0.5 * float(self._v @ self.matrices.mass @ self._v)

@@ -26,6 +26,7 @@ coefficients, traction envelope), or taken from the literature where named.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -104,11 +105,11 @@ class BogieParameters:
     sign_saturation_radps: float
     contact: PolachParameters = field(default=POLACH_DRY_RAIL)
 
-    @property
+    @cached_property
     def total_mass_kg(self) -> float:
         return self.bogie_mass_kg + self.carbody_mass_kg + 2.0 * self.wheelset_mass_kg
 
-    @property
+    @cached_property
     def static_axle_load_n(self) -> float:
         """F_N0 of one wheelset on level track [N]; the layout is symmetric fore and aft."""
         return self.total_mass_kg * GRAVITY_MPS2 / 2.0

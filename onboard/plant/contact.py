@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 __all__ = [
     "MIN_REFERENCE_SPEED_MPS",
@@ -66,7 +67,7 @@ class PolachParameters:
     contact_half_axes_product_m2: float
     kalker_c11: float
 
-    @property
+    @cached_property
     def creep_coefficient_n(self) -> float:
         """G π a b C₁₁ / 4 for the wheelset's two contacts [N], the numerator of ε."""
         return (

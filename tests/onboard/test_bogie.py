@@ -226,3 +226,17 @@ def test_linearly_implicit_scheme_agrees_with_forward_euler_reference() -> None:
     assert error[2] < 0.02  # front wheel speed [rad/s]
     assert error[3] < 0.02  # rear wheel speed [rad/s]
     assert error[4] < 500.0  # front normal force [N]
+
+
+def test_the_substeps_solve_is_numpys_bit_for_bit() -> None:
+    """The bogie calls numpy's LAPACK gufunc without the public wrapper (docs/perf.md, "The
+    bogie"): the same solutions to the last bit, and a singular system still numpy's error."""
+    from onboard.plant.bogie import _solve
+
+    rng = np.random.default_rng(24)
+    for _ in range(200):
+        system = rng.normal(size=(10, 10)) + 10.0 * np.eye(10)
+        rhs = rng.normal(size=10)
+        assert np.array_equal(_solve(system, rhs), np.linalg.solve(system, rhs))
+    with np.errstate(invalid="ignore"), pytest.raises(np.linalg.LinAlgError):
+        _solve(np.zeros((10, 10)), np.ones(10))
