@@ -60,6 +60,26 @@ Integrator = Literal["linearly_implicit", "forward_euler"]
 _BOGIE_PITCH = 2
 _WHEELSETS = ((4, 5, 6), (7, 8, 9))
 """Indices (x, z, spin) of the front and rear wheelsets in q."""
+_STIFF_ENTRIES = np.array(
+    [
+        *(
+            entry
+            for ix, _, ispin in _WHEELSETS
+            for entry in (
+                ix * DOF + ix,
+                ix * DOF + ispin,
+                ispin * DOF + ix,
+                ispin * DOF + ispin,
+                ispin * DOF + _BOGIE_PITCH,
+                _BOGIE_PITCH * DOF + ispin,
+            )
+        ),
+        _BOGIE_PITCH * DOF + _BOGIE_PITCH,
+    ]
+)
+"""Flat indices of the implicit system's entries that the stiff slopes change (see
+``BogieModel._implicit``), in the order it lists their values."""
+_PITCH_ENTRY = _BOGIE_PITCH * DOF + _BOGIE_PITCH
 
 
 @dataclass(frozen=True)
@@ -135,6 +155,7 @@ class _Linearised:
         "rolling",
         "rolling_slope",
         "slip",
+        "velocities",
     )
 
     def __init__(self) -> None:
@@ -150,6 +171,8 @@ class _Linearised:
         self.normal = [0.0, 0.0]
         self.drag = 0.0
         self.lift = 0.0
+        self.velocities: list[float] = [0.0] * DOF
+        """q̇ as the evaluation read it (the substep's velocities before the step)."""
 
 
 class BogieModel:
@@ -184,7 +207,7 @@ class BogieModel:
         self.max_substep_s = max_substep_s
         self.matrices = assemble_matrices(parameters)
         self._mass_inverse = np.linalg.inv(self.matrices.mass)
-        self._systems: dict[float, tuple[Matrix, Matrix]] = {}
+        self._systems: dict[float, tuple[Matrix, Matrix, list[float]]] = {}
         self._origin_m = position_m
         self._q = np.zeros(DOF)
         self._v = np.zeros(DOF)
@@ -195,6 +218,9 @@ class BogieModel:
         self._motor_lagged_nm = [0.0, 0.0]
         self._pressure_pa = [0.0, 0.0]
         self._state = _Linearised()
+        self._air_speed_of: tuple[Matrix | None, float] = (None, 0.0)
+        """A velocity vector and its carbody's air speed [m/s], the last worked out: the next
+        evaluation reads the velocity that the last substep's bookkeeping made."""
         self._contact_constants = (
             parameters.static_axle_load_n,
             parameters.contact_stiffness_n_per_m,
@@ -344,7 +370,13 @@ class BogieModel:
             s.rolling[axle] = rolling
             s.rolling_slope[axle] = -rolling_gain / beta if speed < beta else 0.0
             s.motor[axle], s.normal[axle] = motor, normal
-        air_speed = float(m.carbody_longitudinal @ self._v)
+        known_v, known_air_speed = self._air_speed_of
+        if known_v is self._v:  # worked out by the last substep's bookkeeping
+            air_speed = known_air_speed
+        else:
+            air_speed = float(m.carbody_longitudinal @ self._v)
+            self._air_speed_of = (self._v, air_speed)
+        s.velocities = v
         dynamic = 0.5 * p.air_density_kgpm3 * air_speed * abs(air_speed)
         s.drag = dynamic * p.drag_area_m2
         s.lift = abs(dynamic) * p.lift_area_m2
@@ -355,33 +387,41 @@ class BogieModel:
 
     # -- integration --------------------------------------------------------------------------
 
-    def _system(self, h: float) -> tuple[Matrix, Matrix]:
-        """(M + hC + h²K, C + hK) for this substep, computed once per substep length."""
+    def _system(self, h: float) -> tuple[Matrix, Matrix, list[float]]:
+        """(M + hC + h²K, C + hK) for this substep, computed once per substep length, and the
+        first's entries as floats (row by row)."""
         cached = self._systems.get(h)
         if cached is None:
             m = self.matrices
-            cached = (
-                m.mass + h * m.damping + h * h * m.stiffness,
-                m.damping + h * m.stiffness,
-            )
+            base = m.mass + h * m.damping + h * h * m.stiffness
+            cached = (base, m.damping + h * m.stiffness, base.ravel().tolist())
             self._systems[h] = cached
         return cached
 
     def _implicit(self, h: float, gravity: _Gravity) -> None:
-        base, damping_h = self._system(h)
-        system = base.copy()
+        base, damping_h, entries = self._system(h)
         s = self._state
         radius = self.parameters.wheel_radius_m
+        # The stiff slopes enter 13 entries of the system (_STIFF_ENTRIES), each changed by
+        # one subtraction or addition as floats, the bogie's pitch by each axle's in turn.
+        changed: list[float] = []
+        pitch = entries[_PITCH_ENTRY]
         for axle, (ix, _, ispin) in enumerate(_WHEELSETS):
             creep = h * s.creep_slope[axle]
             brake = h * s.brake_slope[axle]
-            system[ix, ix] -= creep
-            system[ix, ispin] += radius * creep
-            system[ispin, ix] += radius * creep
-            system[ispin, ispin] -= radius * radius * creep + brake + h * s.rolling_slope[axle]
-            system[ispin, _BOGIE_PITCH] -= brake
-            system[_BOGIE_PITCH, ispin] -= brake
-            system[_BOGIE_PITCH, _BOGIE_PITCH] -= brake
+            changed += (
+                entries[ix * DOF + ix] - creep,
+                entries[ix * DOF + ispin] + radius * creep,
+                entries[ispin * DOF + ix] + radius * creep,
+                entries[ispin * DOF + ispin]
+                - (radius * radius * creep + brake + h * s.rolling_slope[axle]),
+                entries[ispin * DOF + _BOGIE_PITCH] - brake,
+                entries[_BOGIE_PITCH * DOF + ispin] - brake,
+            )
+            pitch -= brake
+        changed.append(pitch)
+        system = base.copy()
+        system.put(_STIFF_ENTRIES, changed)
         rhs = h * (s.forces - damping_h @ self._v - self.matrices.stiffness @ self._q)
         velocity = self._v + _solve(system, rhs)
         self._account(h, velocity, gravity, linearised=True)
@@ -403,7 +443,7 @@ class BogieModel:
         m = self.matrices
         radius = self.parameters.wheel_radius_m
         v = velocity.tolist()
-        old = self._v.tolist()
+        old = s.velocities  # self._v's, as the substep's evaluation read them
         losses = self._losses
         weight = 1.0 if linearised else 0.0
         for axle, (ix, _, ispin) in enumerate(_WHEELSETS):
@@ -422,6 +462,7 @@ class BogieModel:
             rolling_change = s.rolling_slope[axle] * (v[ispin] - old[ispin])
             losses["rolling"] -= (s.rolling[axle] + weight * rolling_change) * v[ispin] * h
         air_speed = float(m.carbody_longitudinal @ velocity)
+        self._air_speed_of = (velocity, air_speed)
         losses["aero"] += (s.drag * air_speed - s.lift * v[1]) * h
         losses["damping"] += float(velocity @ m.damping @ velocity) * h
         self._gravity_work_j += float(gravity.force @ velocity) * h
