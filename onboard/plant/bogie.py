@@ -40,7 +40,7 @@ from onboard.plant.bogie_parameters import (
     Matrix,
     assemble_matrices,
 )
-from onboard.plant.contact import creepage, longitudinal_creep_force
+from onboard.plant.contact import CreepForce, creep_force_function, creepage
 from onboard.plant.interfaces import ActuatorCommands, BogieTruth
 from protocol.units import GRAVITY_MPS2
 
@@ -218,6 +218,11 @@ class BogieModel:
         self._motor_lagged_nm = [0.0, 0.0]
         self._pressure_pa = [0.0, 0.0]
         self._state = _Linearised()
+        self._creep_force: tuple[float, CreepForce] = (
+            1.0,
+            creep_force_function(parameters.contact),
+        )
+        """The creep force at an adhesion factor, the last asked for."""
         self._air_speed_of: tuple[Matrix | None, float] = (None, 0.0)
         """A velocity vector and its carbody's air speed [m/s], the last worked out: the next
         evaluation reads the velocity that the last substep's bookkeeping made."""
@@ -336,7 +341,10 @@ class BogieModel:
         radius = p.wheel_radius_m
         beta = p.sign_saturation_radps
         static_load, contact_stiffness, contact_damping = self._contact_constants
-        contact, brake_gain_m3 = p.contact, p.brake_gain_m3
+        brake_gain_m3 = p.brake_gain_m3
+        if adhesion_factor != self._creep_force[0]:
+            self._creep_force = (adhesion_factor, creep_force_function(p.contact, adhesion_factor))
+        creep_force = self._creep_force[1]
         rolling_coefficient = p.rolling_resistance_coefficient
         max_torque, max_power = p.motor_max_torque_nm, p.motor_max_power_w
         pressures, lagged = self._pressure_pa, self._motor_lagged_nm
@@ -346,9 +354,7 @@ class BogieModel:
             normal = static_load - contact_stiffness * q[iz] - contact_damping * v[iz]
             spin = v[ispin]
             slip = v[ix] - radius * spin
-            creep, creep_slope = longitudinal_creep_force(
-                slip, v[ix], normal, contact, adhesion_factor
-            )
+            creep, creep_slope = creep_force(slip, v[ix], normal)
             relative_spin = spin + pitch_speed
             brake_gain = brake_gain_m3 * pressures[axle]
             ratio = relative_spin / beta
