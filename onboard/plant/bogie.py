@@ -134,9 +134,11 @@ class _Gravity:
     __slots__ = ("along", "force", "normal")
 
     def __init__(self, matrices: BogieMatrices, sin_a: float, cos_a: float) -> None:
-        self.along = (GRAVITY_MPS2 * sin_a) * matrices.gravity_along_track
-        self.normal = (GRAVITY_MPS2 * (cos_a - 1.0)) * matrices.gravity_normal
-        self.force = -(GRAVITY_MPS2 * sin_a) * matrices.gravity_along_track + self.normal
+        along = (GRAVITY_MPS2 * sin_a) * matrices.gravity_along_track
+        normal = (GRAVITY_MPS2 * (cos_a - 1.0)) * matrices.gravity_normal
+        self.along: list[float] = along.tolist()
+        self.normal: list[float] = normal.tolist()
+        self.force = -(GRAVITY_MPS2 * sin_a) * matrices.gravity_along_track + normal
 
 
 class _Linearised:
@@ -223,6 +225,7 @@ class BogieModel:
             creep_force_function(parameters.contact),
         )
         """The creep force at an adhesion factor, the last asked for."""
+        self._carbody_longitudinal: list[float] = self.matrices.carbody_longitudinal.tolist()
         self._air_speed_of: tuple[Matrix | None, float] = (None, 0.0)
         """A velocity vector and its carbody's air speed [m/s], the last worked out: the next
         evaluation reads the velocity that the last substep's bookkeeping made."""
@@ -387,8 +390,16 @@ class BogieModel:
         s.drag = dynamic * p.drag_area_m2
         s.lift = abs(dynamic) * p.lift_area_m2
         forces[1] += s.lift
-        s.forces = (
-            np.array(forces) - s.drag * m.carbody_longitudinal - gravity.along + gravity.normal
+        # Q less the drag and gravity, element by element as floats: the same operations, in
+        # the same order, as the arrays' (one rounding each), without four arrays made.
+        drag = s.drag
+        s.forces = np.array(
+            [
+                force - drag * longitudinal - along + normal
+                for force, longitudinal, along, normal in zip(
+                    forces, self._carbody_longitudinal, gravity.along, gravity.normal, strict=True
+                )
+            ]
         )
 
     # -- integration --------------------------------------------------------------------------
