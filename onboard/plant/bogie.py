@@ -177,6 +177,83 @@ class _Linearised:
         """q̇ as the evaluation read it (the substep's velocities before the step)."""
 
 
+class _WheelsetForces:
+    """Each wheelset's creep force, brake, rolling and motor torques and their stiff slopes.
+
+    The hot path of the bogie (two wheelsets, six times a 10 ms step): the parameters are read
+    once, and the saturated signs written out, the same arithmetic as
+    :func:`~onboard.plant.contact.saturated_sign`. The motor's torque is its lagged reference
+    limited by the torque–speed curve (max torque, then max power).
+    """
+
+    __slots__ = ("_constants",)
+
+    def __init__(self, parameters: BogieParameters) -> None:
+        p = parameters
+        self._constants = (
+            p.static_axle_load_n,
+            p.contact_stiffness_n_per_m,
+            p.contact_damping_ns_per_m,
+            p.wheel_radius_m,
+            p.sign_saturation_radps,
+            p.brake_gain_m3,
+            p.rolling_resistance_coefficient,
+            p.motor_max_torque_nm,
+            p.motor_max_power_w,
+        )
+
+    def forces(
+        self,
+        s: _Linearised,
+        q: list[float],
+        v: list[float],
+        pressures: list[float],
+        lagged: list[float],
+        creep_force: CreepForce,
+    ) -> list[float]:
+        """The wheelsets' share of Q (a list of floats), their terms and slopes into ``s``."""
+        (
+            static_load,
+            contact_stiffness,
+            contact_damping,
+            radius,
+            beta,
+            brake_gain_m3,
+            rolling_coefficient,
+            max_torque,
+            max_power,
+        ) = self._constants
+        pitch_speed = v[_BOGIE_PITCH]
+        forces = [0.0] * DOF
+        for axle, (ix, iz, ispin) in enumerate(_WHEELSETS):
+            normal = static_load - contact_stiffness * q[iz] - contact_damping * v[iz]
+            spin = v[ispin]
+            slip = v[ix] - radius * spin
+            creep, creep_slope = creep_force(slip, v[ix], normal)
+            relative_spin = spin + pitch_speed
+            brake_gain = brake_gain_m3 * pressures[axle]
+            ratio = relative_spin / beta
+            brake = -brake_gain * (1.0 if ratio > 1.0 else -1.0 if ratio < -1.0 else ratio)
+            rolling_gain = max(normal, 0.0) * radius * rolling_coefficient
+            ratio = spin / beta
+            rolling = -rolling_gain * (1.0 if ratio > 1.0 else -1.0 if ratio < -1.0 else ratio)
+            limit = max_torque
+            speed = abs(spin)
+            if speed * limit > max_power:
+                limit = max_power / speed
+            motor = min(max(lagged[axle], -limit), limit)
+            forces[ix] += creep
+            forces[ispin] += motor + brake + rolling - radius * creep
+            forces[_BOGIE_PITCH] += motor + brake
+            s.creep[axle], s.creep_slope[axle], s.slip[axle] = creep, creep_slope, slip
+            s.brake[axle] = brake
+            s.brake_slope[axle] = -brake_gain / beta if abs(relative_spin) < beta else 0.0
+            s.rolling[axle] = rolling
+            s.rolling_slope[axle] = -rolling_gain / beta if speed < beta else 0.0
+            s.motor[axle], s.normal[axle] = motor, normal
+        return forces
+
+
 class BogieModel:
     """Truth of the vehicle on its bogie; ``step`` integrates, ``truth`` reports.
 
@@ -229,11 +306,7 @@ class BogieModel:
         self._air_speed_of: tuple[Matrix | None, float] = (None, 0.0)
         """A velocity vector and its carbody's air speed [m/s], the last worked out: the next
         evaluation reads the velocity that the last substep's bookkeeping made."""
-        self._contact_constants = (
-            parameters.static_axle_load_n,
-            parameters.contact_stiffness_n_per_m,
-            parameters.contact_damping_ns_per_m,
-        )
+        self._wheelsets = _WheelsetForces(parameters)
         self._traction_j = 0.0
         self._regen_j = 0.0
         self._losses = {"damping": 0.0, "creep": 0.0, "rolling": 0.0, "brake": 0.0, "aero": 0.0}
@@ -330,55 +403,16 @@ class BogieModel:
             self._pressure_pa[axle] += (reference - self._pressure_pa[axle]) * brake_blend
 
     def _evaluate(self, gravity: _Gravity, adhesion_factor: float) -> None:
-        """Fill ``self._state`` with Q and its stiff slopes at the current state.
-
-        The hot path of the bogie (six times a 10 ms step): the parameters are read as locals
-        and the saturated signs written out, the same arithmetic as
-        :func:`~onboard.plant.contact.saturated_sign`. The motor's torque is its lagged
-        reference limited by the torque–speed curve (max torque, then max power)."""
+        """Fill ``self._state`` with Q and its stiff slopes at the current state."""
         p = self.parameters
         m = self.matrices
         s = self._state
-        q = self._q.tolist()
         v = self._v.tolist()
-        radius = p.wheel_radius_m
-        beta = p.sign_saturation_radps
-        static_load, contact_stiffness, contact_damping = self._contact_constants
-        brake_gain_m3 = p.brake_gain_m3
         if adhesion_factor != self._creep_force[0]:
             self._creep_force = (adhesion_factor, creep_force_function(p.contact, adhesion_factor))
-        creep_force = self._creep_force[1]
-        rolling_coefficient = p.rolling_resistance_coefficient
-        max_torque, max_power = p.motor_max_torque_nm, p.motor_max_power_w
-        pressures, lagged = self._pressure_pa, self._motor_lagged_nm
-        pitch_speed = v[_BOGIE_PITCH]
-        forces = [0.0] * DOF
-        for axle, (ix, iz, ispin) in enumerate(_WHEELSETS):
-            normal = static_load - contact_stiffness * q[iz] - contact_damping * v[iz]
-            spin = v[ispin]
-            slip = v[ix] - radius * spin
-            creep, creep_slope = creep_force(slip, v[ix], normal)
-            relative_spin = spin + pitch_speed
-            brake_gain = brake_gain_m3 * pressures[axle]
-            ratio = relative_spin / beta
-            brake = -brake_gain * (1.0 if ratio > 1.0 else -1.0 if ratio < -1.0 else ratio)
-            rolling_gain = max(normal, 0.0) * radius * rolling_coefficient
-            ratio = spin / beta
-            rolling = -rolling_gain * (1.0 if ratio > 1.0 else -1.0 if ratio < -1.0 else ratio)
-            limit = max_torque
-            speed = abs(spin)
-            if speed * limit > max_power:
-                limit = max_power / speed
-            motor = min(max(lagged[axle], -limit), limit)
-            forces[ix] += creep
-            forces[ispin] += motor + brake + rolling - radius * creep
-            forces[_BOGIE_PITCH] += motor + brake
-            s.creep[axle], s.creep_slope[axle], s.slip[axle] = creep, creep_slope, slip
-            s.brake[axle] = brake
-            s.brake_slope[axle] = -brake_gain / beta if abs(relative_spin) < beta else 0.0
-            s.rolling[axle] = rolling
-            s.rolling_slope[axle] = -rolling_gain / beta if speed < beta else 0.0
-            s.motor[axle], s.normal[axle] = motor, normal
+        forces = self._wheelsets.forces(
+            s, self._q.tolist(), v, self._pressure_pa, self._motor_lagged_nm, self._creep_force[1]
+        )
         known_v, known_air_speed = self._air_speed_of
         if known_v is self._v:  # worked out by the last substep's bookkeeping
             air_speed = known_air_speed
