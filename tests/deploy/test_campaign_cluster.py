@@ -119,12 +119,9 @@ def test_the_cluster_gives_the_summary_of_local_workers(
     assert _comparable(summary) == _comparable(local_summary)
 
 
-def _events(address: str) -> list[dict[str, Any]]:
+def _logged_starts(client: Any) -> list[dict[str, Any]]:
     """The start events the campaign's runs logged on the scheduler so far."""
-    from distributed import Client
-
-    with Client(address, timeout=30) as client:
-        events = client.get_events()
+    events = client.get_events()
     return [
         message
         for topic, found in events.items()
@@ -138,8 +135,11 @@ def _events(address: str) -> list[dict[str, Any]]:
 def test_a_killed_workers_run_is_retried(
     cluster: str, local_summary: dict[str, Any], tmp_path: Path
 ) -> None:
+    from distributed import Client
+
     out = tmp_path / "summary.json"
-    before = len(_events(cluster))
+    watcher = Client(cluster, timeout=30)  # one connection, so that the start is seen at once
+    before = len(_logged_starts(watcher))
     campaign = subprocess.Popen(
         [sys.executable, "-m", "deploy", "campaign", "bologna-ring", "--seeds", "2"]
         + ["--vary", "duration_s=8", "--cluster", cluster, "--json", str(out)],
@@ -148,13 +148,16 @@ def test_a_killed_workers_run_is_retried(
     )
     try:
         deadline = time.monotonic() + 120
-        while len(started := _events(cluster)) == before:
+        while len(started := _logged_starts(watcher)) == before:
             assert time.monotonic() < deadline, "no run started"
-            time.sleep(0.2)
-        time.sleep(1.0)  # inside the run
+            time.sleep(0.05)
+        # At once: an 8 s run takes about a second of wall time on a fast machine (its
+        # trackside's start-up the longest part), so a kill a second after its start could
+        # come after its end and leave nothing to retry.
         os.kill(started[before]["pid"], signal.SIGKILL)
         output, _ = campaign.communicate(timeout=300)
     finally:
+        watcher.close()
         campaign.kill()
         campaign.wait()
     assert campaign.returncode == 0, output.decode(errors="replace")
