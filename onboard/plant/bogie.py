@@ -40,7 +40,7 @@ from onboard.plant.bogie_parameters import (
     Matrix,
     assemble_matrices,
 )
-from onboard.plant.contact import CreepForce, creep_force_function, creepage
+from onboard.plant.contact import CreepForce, creep_force_function, creepage, saturated_sign
 from onboard.plant.interfaces import ActuatorCommands, BogieTruth
 from protocol.units import GRAVITY_MPS2
 
@@ -181,9 +181,8 @@ class _WheelsetForces:
     """Each wheelset's creep force, brake, rolling and motor torques and their stiff slopes.
 
     The hot path of the bogie (two wheelsets, six times a 10 ms step): the parameters are read
-    once, and the saturated signs written out, the same arithmetic as
-    :func:`~onboard.plant.contact.saturated_sign`. The motor's torque is its lagged reference
-    limited by the torque–speed curve (max torque, then max power).
+    once. The motor's torque is its lagged reference limited by the torque–speed curve (max
+    torque, then max power).
     """
 
     __slots__ = ("_constants",)
@@ -232,11 +231,9 @@ class _WheelsetForces:
             creep, creep_slope = creep_force(slip, v[ix], normal)
             relative_spin = spin + pitch_speed
             brake_gain = brake_gain_m3 * pressures[axle]
-            ratio = relative_spin / beta
-            brake = -brake_gain * (1.0 if ratio > 1.0 else -1.0 if ratio < -1.0 else ratio)
+            brake = -brake_gain * saturated_sign(relative_spin, beta)
             rolling_gain = max(normal, 0.0) * radius * rolling_coefficient
-            ratio = spin / beta
-            rolling = -rolling_gain * (1.0 if ratio > 1.0 else -1.0 if ratio < -1.0 else ratio)
+            rolling = -rolling_gain * saturated_sign(spin, beta)
             limit = max_torque
             speed = abs(spin)
             if speed * limit > max_power:
