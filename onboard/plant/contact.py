@@ -19,17 +19,15 @@ force is the stiffest term of the whole model.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 
 __all__ = [
     "MIN_REFERENCE_SPEED_MPS",
-    "CreepForce",
     "PolachParameters",
-    "creep_force_function",
     "creepage",
     "longitudinal_creep_force",
+    "polach_force",
     "saturated_sign",
 ]
 
@@ -127,58 +125,56 @@ def longitudinal_creep_force(
         ∂F_L/∂(ẋ − θ̇R) [N·s/m] at constant ẋ in the creepage's denominator and constant F_N;
         negative in the adhesion area, towards zero or positive beyond the adhesion peak.
     """
-    force = creep_force_function(parameters, adhesion_factor)
-    return force(slip_velocity_mps, rolling_speed_mps, normal_force_n)
-
-
-CreepForce = Callable[[float, float, float], tuple[float, float]]
-"""(slip velocity [m/s], rolling speed [m/s], normal force [N]) ↦ (force [N], slope [N·s/m])."""
-
-
-def creep_force_function(parameters: PolachParameters, adhesion_factor: float = 1.0) -> CreepForce:
-    """:func:`longitudinal_creep_force` with the parameters and the adhesion factor fixed.
-
-    The bogie model asks for the force twelve times a 10 ms step: what depends on neither the
-    slip, the speed nor the load is worked out here once, the rest is the same arithmetic,
-    operation for operation, so the same bits (``μ₀ (1 − A) B`` is a product from the left, as
-    the slope's expression reads it).
-    """
     p = parameters
-    decay_rate = p.friction_decay_s_per_m
-    static = p.static_friction * adhesion_factor
-    ratio = p.friction_ratio_at_infinite_slip
-    remainder = 1.0 - ratio
-    slope_factor = -static * remainder * decay_rate
-    coefficient = p.creep_coefficient_n
-    k_adhesion, k_slip = p.reduction_adhesion_area, p.reduction_slip_area
-    exp, atan, pi = math.exp, math.atan, math.pi
+    return polach_force(
+        slip_velocity_mps,
+        rolling_speed_mps,
+        normal_force_n,
+        p.static_friction * adhesion_factor,
+        p.friction_ratio_at_infinite_slip,
+        p.friction_decay_s_per_m,
+        p.creep_coefficient_n,
+        p.reduction_adhesion_area,
+        p.reduction_slip_area,
+    )
 
-    def force(
-        slip_velocity_mps: float, rolling_speed_mps: float, normal_force_n: float
-    ) -> tuple[float, float]:
-        if normal_force_n <= 0.0:
-            return 0.0, 0.0
-        sliding = abs(slip_velocity_mps)
-        decay = exp(-decay_rate * sliding)
-        friction = static * (remainder * decay + ratio)
-        friction_slope = slope_factor * decay
-        reference = max(abs(rolling_speed_mps), MIN_REFERENCE_SPEED_MPS)
-        scale = coefficient / (reference * normal_force_n * friction)
-        eps = scale * sliding
-        adhesion = k_adhesion * eps
-        slip = k_slip * eps
-        shape = adhesion / (1.0 + adhesion * adhesion) + atan(slip)
-        shape_slope = k_adhesion * (1.0 - adhesion * adhesion) / (
-            1.0 + adhesion * adhesion
-        ) ** 2 + k_slip / (1.0 + slip * slip)
-        eps_slope = scale * (1.0 - sliding * friction_slope / friction)
-        magnitude = normal_force_n * 2.0 / pi * friction * shape
-        magnitude_slope = (
-            normal_force_n
-            * 2.0
-            / pi
-            * (friction_slope * shape + friction * shape_slope * eps_slope)
-        )
-        return (-magnitude if slip_velocity_mps > 0.0 else magnitude), -magnitude_slope
 
-    return force
+def polach_force(
+    slip_velocity_mps: float,
+    rolling_speed_mps: float,
+    normal_force_n: float,
+    static_friction: float,
+    friction_ratio: float,
+    decay_rate: float,
+    creep_coefficient_n: float,
+    reduction_adhesion: float,
+    reduction_slip: float,
+) -> tuple[float, float]:
+    """:func:`longitudinal_creep_force` on plain floats, μ₀ already scaled by the adhesion
+    factor: the one formula, which the bogie's compiled substeps run as well
+    (:mod:`onboard.plant.bogie_kernel`), so it uses only what numba compiles."""
+    if normal_force_n <= 0.0:
+        return 0.0, 0.0
+    remainder = 1.0 - friction_ratio
+    sliding = abs(slip_velocity_mps)
+    decay = math.exp(-decay_rate * sliding)
+    friction = static_friction * (remainder * decay + friction_ratio)
+    friction_slope = -static_friction * remainder * decay_rate * decay
+    reference = max(abs(rolling_speed_mps), MIN_REFERENCE_SPEED_MPS)
+    scale = creep_coefficient_n / (reference * normal_force_n * friction)
+    eps = scale * sliding
+    adhesion = reduction_adhesion * eps
+    slip = reduction_slip * eps
+    shape = adhesion / (1.0 + adhesion * adhesion) + math.atan(slip)
+    shape_slope = reduction_adhesion * (1.0 - adhesion * adhesion) / (
+        1.0 + adhesion * adhesion
+    ) ** 2 + reduction_slip / (1.0 + slip * slip)
+    eps_slope = scale * (1.0 - sliding * friction_slope / friction)
+    magnitude = normal_force_n * 2.0 / math.pi * friction * shape
+    magnitude_slope = (
+        normal_force_n
+        * 2.0
+        / math.pi
+        * (friction_slope * shape + friction * shape_slope * eps_slope)
+    )
+    return (-magnitude if slip_velocity_mps > 0.0 else magnitude), -magnitude_slope

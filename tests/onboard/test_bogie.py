@@ -228,15 +228,76 @@ def test_linearly_implicit_scheme_agrees_with_forward_euler_reference() -> None:
     assert error[4] < 500.0  # front normal force [N]
 
 
-def test_the_substeps_solve_is_numpys_bit_for_bit() -> None:
-    """The bogie calls numpy's LAPACK gufunc without the public wrapper (docs/perf.md, "The
-    bogie"): the same solutions to the last bit, and a singular system still numpy's error."""
-    from onboard.plant.bogie import _solve
+def test_the_compiled_creep_force_is_contacts_formula_bit_for_bit() -> None:
+    """The bogie's compiled substeps run contact.polach_force compiled: the same bits as the
+    interpreter's (no fast-math, no fused multiply-add), over the slip, speed and load seen."""
+    from onboard.plant.bogie_kernel import _polach
+    from onboard.plant.contact import polach_force
 
+    c = P.contact
     rng = np.random.default_rng(24)
-    for _ in range(200):
-        system = rng.normal(size=(10, 10)) + 10.0 * np.eye(10)
-        rhs = rng.normal(size=10)
-        assert np.array_equal(_solve(system, rhs), np.linalg.solve(system, rhs))
-    with np.errstate(invalid="ignore"), pytest.raises(np.linalg.LinAlgError):
-        _solve(np.zeros((10, 10)), np.ones(10))
+    for _ in range(2000):
+        slip = float(rng.choice([-1.0, 1.0]) * 10.0 ** rng.uniform(-9.0, 1.0))
+        speed = float(rng.uniform(-40.0, 40.0))
+        normal = float(rng.uniform(-1e4, 1.5e5))
+        friction = float(c.static_friction * rng.uniform(0.1, 1.0))
+        constants = (
+            friction,
+            c.friction_ratio_at_infinite_slip,
+            c.friction_decay_s_per_m,
+            c.creep_coefficient_n,
+            c.reduction_adhesion_area,
+            c.reduction_slip_area,
+        )
+        assert _polach(slip, speed, normal, *constants) == polach_force(
+            slip, speed, normal, *constants
+        )
+
+
+_INTERPRETED_RUN = """
+import json
+from onboard.plant.bogie import BogieModel
+from onboard.plant.interfaces import ActuatorCommands
+model = BogieModel(speed_mps=8.0)
+commands = ActuatorCommands(
+    motor_torque_front_nm=900.0, motor_torque_rear_nm=900.0, brake_pressure_rear_pa=1.0e5
+)
+for _ in range(60):
+    model.step(0.01, commands, gradient_permille=-4.0, adhesion_factor=0.7)
+print(json.dumps([model.truth().speed_mps, model.truth().wheel_speed_front_radps,
+                  model.truth().normal_force_rear_n, model.energy().residual_j()]))
+"""
+
+
+def test_the_compiled_step_is_the_interpreters() -> None:
+    """With NUMBA_DISABLE_JIT=1 the kernel's same functions run in the interpreter: a debugging
+    aid that must give the compiled step's result (up to the solve's LAPACK build)."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    model = BogieModel(speed_mps=8.0)
+    commands = ActuatorCommands(
+        motor_torque_front_nm=900.0, motor_torque_rear_nm=900.0, brake_pressure_rear_pa=1.0e5
+    )
+    for _ in range(60):
+        model.step(0.01, commands, gradient_permille=-4.0, adhesion_factor=0.7)
+    truth = model.truth()
+    compiled = [
+        truth.speed_mps,
+        truth.wheel_speed_front_radps,
+        truth.normal_force_rear_n,
+        model.energy().residual_j(),
+    ]
+    result = subprocess.run(
+        [sys.executable, "-c", _INTERPRETED_RUN],
+        env={**os.environ, "NUMBA_DISABLE_JIT": "1"},
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=120,
+    )
+    interpreted = json.loads(result.stdout)
+    assert_allclose(interpreted[:3], compiled[:3], rtol=1e-10)
+    assert abs(interpreted[3] - compiled[3]) < 1e-3
