@@ -129,7 +129,7 @@ class BogieModel:
             [m.carbody_longitudinal, m.gravity_along_track, m.gravity_normal]
         ).astype(np.float64)
         self._constants = _constants(parameters)
-        self._systems: dict[float, Matrix] = {}
+        self._models: dict[float, tuple[Matrix, Matrix, Matrix, Matrix]] = {}
         self._origin_m = position_m
         self._q = np.zeros(DOF)
         self._v = np.zeros(DOF)
@@ -144,18 +144,9 @@ class BogieModel:
         self._loads = np.zeros((3, DOF))
         self._energy = np.zeros(kernel.ENERGY_ENTRIES)
         self._initial_mechanical_j = self._kinetic_j() + self._elastic_j()
-        kernel.evaluate(
-            self._q,
-            self._v,
-            self._actuators,
-            self._terms,
-            self._loads,
-            self._vectors,
-            self._constants,
-            0.0,
-            1.0,
-            1.0,
-        )
+        self._state = (self._q, self._v, self._actuators, self._terms, self._loads, self._energy)
+        """The arrays a step changes in place (``bogie_kernel.State``)."""
+        kernel.evaluate(self._state, self._model(DEFAULT_SUBSTEP_S), (0.0, 1.0), 1.0)
 
     # -- public -------------------------------------------------------------------------------
 
@@ -184,20 +175,11 @@ class BogieModel:
             count,
             h,
             references,
-            math.sin(angle),
-            math.cos(angle),
+            (math.sin(angle), math.cos(angle)),
             adhesion_factor,
             self.integrator == "linearly_implicit",
-            self._q,
-            self._v,
-            self._actuators,
-            self._terms,
-            self._loads,
-            self._energy,
-            self._matrices,
-            self._system(h),
-            self._vectors,
-            self._constants,
+            self._state,
+            self._model(h),
         )
         for _ in range(count):
             self._time_s += h
@@ -249,16 +231,18 @@ class BogieModel:
 
     # -- integration --------------------------------------------------------------------------
 
-    def _system(self, h: float) -> Matrix:
-        """M + hC + h²K and C + hK for this substep, computed once per substep length."""
-        cached = self._systems.get(h)
-        if cached is None:
+    def _model(self, h: float) -> tuple[Matrix, Matrix, Matrix, Matrix]:
+        """What a step of substep ``h`` reads (``bogie_kernel.Model``): [M], [C], [K], [M]⁻¹;
+        M + hC + h²K and C + hK, computed once per substep length; the vectors; the
+        constants."""
+        model = self._models.get(h)
+        if model is None:
             m = self.matrices
-            cached = np.stack(
+            system = np.stack(
                 [m.mass + h * m.damping + h * h * m.stiffness, m.damping + h * m.stiffness]
             )
-            self._systems[h] = cached
-        return cached
+            model = self._models[h] = (self._matrices, system, self._vectors, self._constants)
+        return model
 
     def _kinetic_j(self) -> float:
         return 0.5 * float(self._v @ self.matrices.mass @ self._v)

@@ -40,7 +40,17 @@ from onboard.plant.bogie_parameters import DOF
 from protocol import units
 from protocol.units import GRAVITY_MPS2
 
-__all__ = ["CONSTANTS", "ENERGY_ENTRIES", "TERMS", "advance", "cache_directory", "evaluate"]
+__all__ = [
+    "CONSTANTS",
+    "ENERGY_ENTRIES",
+    "TERMS",
+    "Gravity",
+    "Model",
+    "State",
+    "advance",
+    "cache_directory",
+    "evaluate",
+]
 
 _Function = TypeVar("_Function", bound=Callable[..., object])
 _config: Any = numba.config
@@ -126,6 +136,13 @@ _LONGITUDINAL, _ALONG, _NORMAL_G = range(3)
 ) = range(21)
 CONSTANTS = 21
 
+State = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""(q, v, actuators, terms, loads, energy): what a step changes."""
+Model = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+"""(matrices, system, vectors, constants): what a step reads."""
+Gravity = tuple[float, float]
+"""The sine and cosine of the gradient's angle."""
+
 
 @_jit
 def _dot(row: np.ndarray, x: np.ndarray) -> float:
@@ -136,19 +153,11 @@ def _dot(row: np.ndarray, x: np.ndarray) -> float:
 
 
 @_jit
-def evaluate(
-    q: np.ndarray,
-    v: np.ndarray,
-    actuators: np.ndarray,
-    terms: np.ndarray,
-    loads: np.ndarray,
-    vectors: np.ndarray,
-    constants: np.ndarray,
-    sin_a: float,
-    cos_a: float,
-    adhesion_factor: float,
-) -> None:
+def evaluate(state: State, model: Model, gravity: Gravity, adhesion_factor: float) -> None:
     """Q less drag and gravity, each wheelset's terms and stiff slopes, at the current state."""
+    q, v, actuators, terms, loads, _ = state
+    _, _, vectors, constants = model
+    sin_a, cos_a = gravity
     c = constants
     radius, beta = c[_RADIUS], c[_BETA]
     static_friction = c[_STATIC_FRICTION] * adhesion_factor
@@ -223,20 +232,13 @@ def _lag_actuators(
 
 @_jit
 def _account(
-    h: float,
-    velocity: np.ndarray,
-    weight: float,
-    terms: np.ndarray,
-    loads: np.ndarray,
-    energy: np.ndarray,
-    matrices: np.ndarray,
-    vectors: np.ndarray,
-    constants: np.ndarray,
-    sin_a: float,
-    cos_a: float,
+    h: float, velocity: np.ndarray, weight: float, state: State, model: Model, gravity: Gravity
 ) -> None:
     """Add this substep's work of every force, evaluated with the substep's velocities
     (``weight`` 1: the linearised forces of the implicit scheme; 0: the explicit's)."""
+    _, _, _, terms, loads, energy = state
+    matrices, _, vectors, constants = model
+    sin_a, cos_a = gravity
     radius = constants[_RADIUS]
     old = loads[_EVALUATED_V]
     for axle in range(2):
@@ -259,33 +261,22 @@ def _account(
     air_speed = _dot(vectors[_LONGITUDINAL], velocity)
     energy[AERO_LOSS] += (loads[_AERO, _DRAG] * air_speed - loads[_AERO, _LIFT] * velocity[1]) * h
     damping = 0.0
-    gravity = 0.0
+    gravity_work = 0.0
     along = GRAVITY_MPS2 * sin_a
     across = GRAVITY_MPS2 * (cos_a - 1.0)
     for row in range(DOF):
         damping += velocity[row] * _dot(matrices[_DAMPING_M, row], velocity)
         force = -along * vectors[_ALONG, row] + across * vectors[_NORMAL_G, row]
-        gravity += force * velocity[row]
+        gravity_work += force * velocity[row]
     energy[DAMPING_LOSS] += damping * h
-    energy[GRAVITY_WORK] += gravity * h
+    energy[GRAVITY_WORK] += gravity_work * h
 
 
 @_jit
-def _implicit(
-    h: float,
-    q: np.ndarray,
-    v: np.ndarray,
-    terms: np.ndarray,
-    loads: np.ndarray,
-    energy: np.ndarray,
-    matrices: np.ndarray,
-    system: np.ndarray,
-    vectors: np.ndarray,
-    constants: np.ndarray,
-    sin_a: float,
-    cos_a: float,
-) -> None:
+def _implicit(h: float, state: State, model: Model, gravity: Gravity) -> None:
     """One linearly implicit Euler substep: the stiff slopes enter 13 entries of the system."""
+    q, v, _, terms, loads, _ = state
+    matrices, system, _, constants = model
     radius = constants[_RADIUS]
     a = system[_BASE].copy()
     for axle in range(2):
@@ -307,27 +298,17 @@ def _implicit(
             forces[row] - _dot(system[_DAMPING_H, row], v) - _dot(matrices[_STIFFNESS, row], q)
         )
     velocity = v + np.linalg.solve(a, rhs)
-    _account(h, velocity, 1.0, terms, loads, energy, matrices, vectors, constants, sin_a, cos_a)
+    _account(h, velocity, 1.0, state, model, gravity)
     v[:] = velocity
     for row in range(DOF):
         q[row] += h * velocity[row]
 
 
 @_jit
-def _explicit(
-    h: float,
-    q: np.ndarray,
-    v: np.ndarray,
-    terms: np.ndarray,
-    loads: np.ndarray,
-    energy: np.ndarray,
-    matrices: np.ndarray,
-    vectors: np.ndarray,
-    constants: np.ndarray,
-    sin_a: float,
-    cos_a: float,
-) -> None:
+def _explicit(h: float, state: State, model: Model, gravity: Gravity) -> None:
     """One forward Euler substep (the seed's scheme)."""
+    q, v, _, _, loads, _ = state
+    matrices = model[0]
     forces = loads[_FORCES]
     net = np.empty(DOF)
     for row in range(DOF):
@@ -337,7 +318,7 @@ def _explicit(
     velocity = np.empty(DOF)
     for row in range(DOF):
         velocity[row] = v[row] + h * _dot(matrices[_MASS_INVERSE, row], net)
-    _account(h, v, 0.0, terms, loads, energy, matrices, vectors, constants, sin_a, cos_a)
+    _account(h, v, 0.0, state, model, gravity)
     for row in range(DOF):
         q[row] += h * v[row]
     v[:] = velocity
@@ -348,30 +329,20 @@ def advance(
     count: int,
     h: float,
     references: np.ndarray,
-    sin_a: float,
-    cos_a: float,
+    gravity: Gravity,
     adhesion_factor: float,
     implicit: bool,
-    q: np.ndarray,
-    v: np.ndarray,
-    actuators: np.ndarray,
-    terms: np.ndarray,
-    loads: np.ndarray,
-    energy: np.ndarray,
-    matrices: np.ndarray,
-    system: np.ndarray,
-    vectors: np.ndarray,
-    constants: np.ndarray,
+    state: State,
+    model: Model,
 ) -> None:
     """``count`` substeps of ``h`` under the references (motor torques front and rear, then
     brake pressures), then the forces evaluated at the end state."""
+    actuators, constants = state[2], model[3]
     for _ in range(count):
         _lag_actuators(actuators, constants, h, references)
-        evaluate(q, v, actuators, terms, loads, vectors, constants, sin_a, cos_a, adhesion_factor)
+        evaluate(state, model, gravity, adhesion_factor)
         if implicit:
-            _implicit(
-                h, q, v, terms, loads, energy, matrices, system, vectors, constants, sin_a, cos_a
-            )
+            _implicit(h, state, model, gravity)
         else:
-            _explicit(h, q, v, terms, loads, energy, matrices, vectors, constants, sin_a, cos_a)
-    evaluate(q, v, actuators, terms, loads, vectors, constants, sin_a, cos_a, adhesion_factor)
+            _explicit(h, state, model, gravity)
+    evaluate(state, model, gravity, adhesion_factor)
