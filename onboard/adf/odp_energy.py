@@ -53,7 +53,9 @@ from onboard.adf.odp import (
     OdpPlan,
     held_under,
 )
+from onboard.plant import point_mass
 from onboard.plant.point_mass import MIN_POWER_SPEED_MPS, PointMassParameters
+from onboard.runtime.compiled import compiled
 from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap
 
@@ -304,7 +306,7 @@ class _Profiles:
         self.dip = dip
         """The speed at the top of each steep descent as a share of the target there: below 1
         the train coasts into the descent from before it (1: it holds the target up to it)."""
-        self._descents: dict[float, tuple[FloatArray, list[bool]]] = {}
+        self._descents: dict[float, tuple[FloatArray, npt.NDArray[np.bool_]]] = {}
         self._envelopes: dict[float, tuple[FloatArray, FloatArray]] = {}
         # A train faster than the holding speed slows down to it by coasting (no traction, no
         # loss to the brake), or, when the schedule asks for more time than coasting down can
@@ -380,8 +382,8 @@ class _Profiles:
         # a drop to brake for.
         limits = np.minimum(track.ceilings_mps, targets.max())
         ends = np.flatnonzero(limits[1:] < limits[:-1] - SPEED_TOLERANCE_MPS) + 1
-        targets_v2 = (targets * targets).tolist()
-        track_n = track.track_forces_n.tolist()
+        targets_v2 = targets * targets
+        track_n = track.track_forces_n
         for end in (*ends[ends < n], n):
             low = track.final_speed_mps if end == n else float(targets[end])
             braking = track.braking_mps2 if end == n else track.limit_braking_mps2
@@ -394,28 +396,24 @@ class _Profiles:
             curves[span] = np.minimum(curves[span], np.sqrt(low**2 + 2.0 * braking * to_end_m))
             if first < 0:
                 continue
-            curves_list = curves.tolist()
             # The coasting part, backwards from the onset point.
             force = track.resistance_n(onset) + float(track.track_forces_n[first])
             v2 = onset**2 + 2.0 * force / track.effective_mass_kg * (onset_m - first * h)
             m = track.model
-            a_n, b_n, c_n = m.davis_a_n, m.davis_b_n_per_mps, m.davis_c_n_per_mps2
-            coast_k = 2.0 * h / track.effective_mass_kg
-            for i in range(first, -1, -1):
-                # On a descent coasting gains speed, so backwards the curve falls; it is held
-                # at a crawl, as the forward run is, so that a lower U always coasts longer.
-                v2 = max(v2, CRAWL_MPS**2)
-                if v2 >= targets_v2[i]:
-                    break
-                v = math.sqrt(v2)
-                if v < curves_list[i]:
-                    curves_list[i] = v
-                if i > 0:
-                    v2 += coast_k * (a_n + b_n * v + c_n * v2 + track_n[i - 1])
-            curves = np.minimum(curves, np.array(curves_list))
+            coasted = curves.copy()
+            _coast_backwards(
+                coasted,
+                first,
+                v2,
+                targets_v2,
+                track_n,
+                (m.davis_a_n, m.davis_b_n_per_mps, m.davis_c_n_per_mps2),
+                2.0 * h / track.effective_mass_kg,
+            )
+            curves = np.minimum(curves, coasted)
         return curves
 
-    def descent_curves(self, holding_mps: float) -> tuple[FloatArray, list[bool]]:
+    def descent_curves(self, holding_mps: float) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
         """Before each steep descent (where coasting at the target gains speed): the speeds
         from which coasting reaches the descent's top at ``dip`` × the target there (infinite
         elsewhere), and the steps of those descents, on which the train coasts (no traction
@@ -438,7 +436,7 @@ class _Profiles:
                 self._coast_back(curves, targets, start, self.dip * float(targets[start]))
                 later = ends[ends > start]
                 coast_only[start : int(later[0]) if later.size else track.steps] = True
-        self._descents[holding_mps] = curves, coast_only.tolist()
+        self._descents[holding_mps] = curves, coast_only
         return self._descents[holding_mps]
 
     def _coast_back(self, curves: FloatArray, targets: FloatArray, end: int, low: float) -> None:
@@ -460,53 +458,22 @@ class _Profiles:
 
     def speeds(self, holding_mps: float, onset_mps: float) -> FloatArray:
         """The profile: drive below the coasting curves, coast on or above them, never above
-        the braking envelope. (The hot loop of the planner: plain floats and lists.)"""
+        the braking envelope (the planner's hot loop, compiled: :func:`_forward`)."""
         track = self.track
-        n, h = track.steps, track.step_m
         targets, envelope = self.envelope(holding_mps)
         descent, coast_only = self.descent_curves(holding_mps)
-        coasting = np.minimum(self.coasting_curves(targets, onset_mps), descent).tolist()
-        envelope_v2 = (envelope * envelope).tolist()
-        targets_v2 = (targets * targets).tolist()
-        coasting_v2 = [c * c for c in coasting]
-        track_n = track.track_forces_n.tolist()
         m = track.model
-        a_n, b_n, c_n = m.davis_a_n, m.davis_b_n_per_mps, m.davis_c_n_per_mps2
-        f_max, p_max = m.max_traction_force_n, m.max_traction_power_w
-        mass = track.effective_mass_kg
-        coast_k = 2.0 * h / mass
-        a_max = track.max_acceleration_mps2
-        crawl_v2 = CRAWL_MPS**2
-        v = min(self.initial_mps, float(envelope[0]))
-        out = [v]
-        sqrt = math.sqrt
-        for i in range(n):
-            vv = v * v
-            resistance = a_n + b_n * v + c_n * vv + track_n[i]
-            coast_v2 = vv - coast_k * resistance
-            if coast_only[i] or v >= coasting[i] - SPEED_TOLERANCE_MPS:
-                v2 = coast_v2
-            else:
-                traction = f_max
-                if v > MIN_POWER_SPEED_MPS and p_max < f_max * v:
-                    traction = p_max / v
-                acceleration = (traction - resistance) / mass
-                if acceleration > a_max:
-                    acceleration = a_max
-                # Traction up to the target (holding it); coasting where that is faster
-                # (a descent, or a train above the target coming down to it).
-                v2 = min(vv + 2.0 * acceleration * h, targets_v2[i + 1])
-                if coast_v2 > v2:
-                    v2 = coast_v2
-                if v2 > coasting_v2[i + 1]:
-                    v2 = coasting_v2[i + 1]
-            if v2 < crawl_v2 and i < n - 1:
-                v2 = crawl_v2
-            if v2 > envelope_v2[i + 1]:
-                v2 = envelope_v2[i + 1]
-            v = sqrt(v2) if v2 > 0.0 else 0.0
-            out.append(v)
-        return np.array(out)
+        return _forward(
+            min(self.initial_mps, float(envelope[0])),
+            np.minimum(self.coasting_curves(targets, onset_mps), descent),
+            envelope * envelope,
+            targets * targets,
+            track.track_forces_n,
+            coast_only,
+            (m.davis_a_n, m.davis_b_n_per_mps, m.davis_c_n_per_mps2),
+            (m.max_traction_force_n, m.max_traction_power_w),
+            (track.effective_mass_kg, track.step_m, track.max_acceleration_mps2),
+        )
 
     def time_s(self, holding_mps: float, onset_mps: float) -> float:
         return float(_cumulative(self.track, self.speeds(holding_mps, onset_mps))[0][-1])
@@ -524,6 +491,94 @@ class _Profiles:
     def energy_j(self, holding_mps: float, duration_s: float) -> float:
         speeds = self.speeds(holding_mps, self.onset_mps(holding_mps, duration_s))
         return float(_cumulative(self.track, speeds)[1][-1])
+
+
+_jit = compiled(point_mass)
+"""The planner's loops, compiled; they read point_mass's MIN_POWER_SPEED_MPS."""
+
+
+@_jit
+def _forward(
+    initial_mps: float,
+    coasting: FloatArray,
+    envelope_v2: FloatArray,
+    targets_v2: FloatArray,
+    track_n: FloatArray,
+    coast_only: npt.NDArray[np.bool_],
+    davis: tuple[float, float, float],
+    traction_limits: tuple[float, float],
+    motion: tuple[float, float, float],
+) -> FloatArray:
+    """The forward run of :meth:`_Profiles.speeds` from ``initial_mps`` over the grid:
+    ``davis`` (A, B, C), ``traction_limits`` (force, power), ``motion`` (effective mass, step,
+    largest acceleration). ``min`` and ``max`` are written out as the built-ins choose."""
+    a_n, b_n, c_n = davis
+    f_max, p_max = traction_limits
+    mass, h, a_max = motion
+    n = track_n.shape[0]
+    coast_k = 2.0 * h / mass
+    crawl_v2 = CRAWL_MPS * CRAWL_MPS
+    v = initial_mps
+    out = np.empty(n + 1)
+    out[0] = v
+    for i in range(n):
+        vv = v * v
+        resistance = a_n + b_n * v + c_n * vv + track_n[i]
+        coast_v2 = vv - coast_k * resistance
+        if coast_only[i] or v >= coasting[i] - SPEED_TOLERANCE_MPS:
+            v2 = coast_v2
+        else:
+            traction = f_max
+            if v > MIN_POWER_SPEED_MPS and p_max < f_max * v:
+                traction = p_max / v
+            acceleration = (traction - resistance) / mass
+            if acceleration > a_max:
+                acceleration = a_max
+            # Traction up to the target (holding it); coasting where that is faster (a
+            # descent, or a train above the target coming down to it).
+            v2 = vv + 2.0 * acceleration * h
+            if targets_v2[i + 1] < v2:
+                v2 = targets_v2[i + 1]
+            if coast_v2 > v2:
+                v2 = coast_v2
+            ceiling_v2 = coasting[i + 1] * coasting[i + 1]
+            if v2 > ceiling_v2:
+                v2 = ceiling_v2
+        if v2 < crawl_v2 and i < n - 1:
+            v2 = crawl_v2
+        if v2 > envelope_v2[i + 1]:
+            v2 = envelope_v2[i + 1]
+        v = math.sqrt(v2) if v2 > 0.0 else 0.0
+        out[i + 1] = v
+    return out
+
+
+@_jit
+def _coast_backwards(
+    curves: FloatArray,
+    first: int,
+    v2: float,
+    targets_v2: FloatArray,
+    track_n: FloatArray,
+    davis: tuple[float, float, float],
+    coast_k: float,
+) -> None:
+    """Lower ``curves`` from point ``first`` backwards to the coasting curve that has v² =
+    ``v2`` there, back to where it meets the targets (:meth:`_Profiles.coasting_curves`)."""
+    a_n, b_n, c_n = davis
+    crawl_v2 = CRAWL_MPS**2
+    for i in range(first, -1, -1):
+        # On a descent coasting gains speed, so backwards the curve falls; it is held at a
+        # crawl, as the forward run is, so that a lower U always coasts longer.
+        if crawl_v2 > v2:
+            v2 = crawl_v2
+        if v2 >= targets_v2[i]:
+            break
+        v = math.sqrt(v2)
+        if v < curves[i]:
+            curves[i] = v
+        if i > 0:
+            v2 += coast_k * (a_n + b_n * v + c_n * v2 + track_n[i - 1])
 
 
 def _cumulative(track: LegTrack, speeds: FloatArray) -> tuple[FloatArray, FloatArray]:

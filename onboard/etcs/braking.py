@@ -34,9 +34,11 @@ from __future__ import annotations
 
 import bisect
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
+
+import numpy as np
+import numpy.typing as npt
 
 from onboard.etcs._exceptions import EtcsInputError
 from onboard.etcs.deceleration import (
@@ -52,6 +54,8 @@ from onboard.etcs.values import (
     NationalValues,
     TrainData,
 )
+from onboard.runtime.compiled import compiled
+from protocol import units
 from protocol.units import MPS_PER_KMH
 from trackdb import TrackMap
 
@@ -78,6 +82,7 @@ DEFAULT_LOOKBACK_M = 10_000.0
 """How far before a target [m] its deceleration profile is read when no window is given."""
 SPEED_TOLERANCE_MPS = 1e-6
 """How closely [m/s] a limit's speed at a distance is found."""
+FloatArray = npt.NDArray[np.float64]
 _SPEED_SEARCH_MPS = 150.0
 _SPEED_SEARCH_MAX_MPS = 1e4
 
@@ -144,7 +149,7 @@ class BrakingCurve:
         Speed of the curve at the target [m/s], ≥ 0.
     """
 
-    __slots__ = ("_beyond_mps2", "_bands_m", "_decelerations", "_squares", "target_m")
+    __slots__ = ("_arrays", "_beyond_mps2", "_bands_m", "_decelerations", "_squares", "target_m")
 
     def __init__(
         self, profile: DecelerationProfile, *, target_m: float, target_speed_mps: float
@@ -171,6 +176,7 @@ class BrakingCurve:
         self._decelerations = decelerations
         self._squares = squares
         self._beyond_mps2 = profile.at(target_m)
+        self._arrays: CurveArrays | None = None
 
     def speed_mps(self, distance_m: float) -> float:
         """The curve's speed [m/s] at ``distance_m`` [m] before the target (< 0: beyond it)."""
@@ -191,22 +197,17 @@ class BrakingCurve:
         k = bisect.bisect_right(self._squares, square) - 1
         return self._bands_m[k] + (square - self._squares[k]) / (2.0 * self._decelerations[k])
 
-    def distance_function(self) -> Callable[[float], float]:
-        """:meth:`distance_m` with the curve's bands bound once, for a bisection's many calls:
-        the same arithmetic, operation for operation."""
-        squares, bands, decelerations = self._squares, self._bands_m, self._decelerations
-        first_square = squares[0]
-        beyond_twice = 2.0 * self._beyond_mps2
-        right = bisect.bisect_right
-
-        def distance_m(speed_mps: float) -> float:
-            square = speed_mps * speed_mps
-            if square < first_square:
-                return -(first_square - square) / beyond_twice
-            k = right(squares, square) - 1
-            return bands[k] + (square - squares[k]) / (2.0 * decelerations[k])
-
-        return distance_m
+    def arrays(self) -> CurveArrays:
+        """The curve as :func:`_curve_distance` reads it: its squares, bands and decelerations
+        as arrays, and twice the deceleration beyond the target (made once, on first use)."""
+        if self._arrays is None:
+            self._arrays = (
+                np.array(self._squares),
+                np.array(self._bands_m),
+                np.array(self._decelerations),
+                2.0 * self._beyond_mps2,
+            )
+        return self._arrays
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -426,92 +427,30 @@ class TargetLimits:
             raise EtcsInputError(f"distance {distance_m} m and acceleration must be finite")
         if limit is Limit.EBD or limit is Limit.SBD:
             return self.curve.speed_mps(distance_m)
-        limit_m = self._limit_function(limit, acceleration_mps2)
-        if limit_m(0.0) > distance_m:
-            return 0.0
-        low, high = 0.0, _SPEED_SEARCH_MPS
-        while limit_m(high) <= distance_m:
-            low, high = high, 2.0 * high
-            if high > _SPEED_SEARCH_MAX_MPS:
-                return low
-        # Every limit's distance grows with the speed: bisect for the crossing.
-        while high - low > SPEED_TOLERANCE_MPS:
-            middle = 0.5 * (low + high)
-            if limit_m(middle) > distance_m:
-                high = middle
-            else:
-                low = middle
-        return low
+        return _limit_speed(distance_m, *self._compiled(limit, acceleration_mps2))
 
-    def _limit_function(self, limit: Limit, acceleration_mps2: float) -> Callable[[float], float]:
-        """``v ↦ _limit_m(limit, v, acceleration_mps2)`` for the bisection of :meth:`speed_mps`.
-
-        The bisection evaluates a limit some 30 times per call, several times per supervision
-        cycle: this is the same arithmetic, operation for operation (so the same bits), with
-        what does not depend on the speed worked out once and the calls inlined. ``max(a, b)``
-        is written ``b if b > a else a`` and ``min(a, b)`` ``b if b < a else a``, as the
-        built-ins choose. A test checks it against :meth:`_limit_m`.
-        """
+    def _compiled(
+        self, limit: Limit, acceleration_mps2: float
+    ) -> tuple[int, CurveArrays, tuple[float, float, float, float], _Emergency]:
+        """:func:`_limit_distance`'s arguments after the speed: the limit's code, the curve,
+        the times (T_bs1 or T_bs2, warning, driver, indication) and what the emergency
+        intervention's distance needs besides the speed (``_emergency_intervention_m`` with
+        what does not depend on the speed worked out once)."""
         t = self.times
-        curve_distance_m = self.curve.distance_function()
-        if not self.target.ebd_based:
-            t_bs1 = t.t_bs1_s
-
-            def service_m(v: float) -> float:
-                return curve_distance_m(v) + v * t_bs1
-
-        else:
-            emergency_m = self._emergency_function(curve_distance_m, acceleration_mps2)
-            if limit is Limit.EBI:
-                return emergency_m
-            t_bs2 = t.t_bs2_s
-
-            def service_m(v: float) -> float:
-                return emergency_m(v) + v * t_bs2
-
-        if limit is Limit.SBI1 or limit is Limit.SBI2:
-            return service_m
-        if limit is Limit.WARNING:
-            t_warning = t.t_warning_s
-            return lambda v: service_m(v) + v * t_warning
-        t_driver = t.t_driver_s
-        if limit is Limit.PERMITTED:
-            return lambda v: service_m(v) + v * t_driver
-        t_indication = t.t_indication_s
-        return lambda v: service_m(v) + v * t_driver + v * t_indication
-
-    def _emergency_function(
-        self, curve_distance_m: Callable[[float], float], acceleration_mps2: float
-    ) -> Callable[[float], float]:
-        """``v ↦ _emergency_intervention_m(v, acceleration_mps2)`` for :meth:`_limit_function`,
-        on the curve's ``curve_distance_m``: V_ura inlined, what does not depend on the speed
-        worked out once."""
-        t = self.times
-        v_target = self.target.speed_mps
         a_est1 = 0.0 if acceleration_mps2 < 0.0 else acceleration_mps2
         a_est2 = self._a_est2_max if self._a_est2_max < a_est1 else a_est1
-        t_traction, t_berem = t.t_traction_s, t.t_berem_s
-        v_delta1 = a_est1 * t_traction
-        v_delta2 = a_est2 * t_berem
-        half_delta1, half_delta2 = v_delta1 / 2.0, v_delta2 / 2.0
-        compensated = self._accuracy_compensated
-
-        def emergency_m(v: float) -> float:  # _emergency_intervention_m
-            if not compensated:
-                v_delta0 = 0.0
-            elif v <= _URA_FROM_MPS:
-                v_delta0 = _URA_MIN_MPS
-            else:
-                ura = _URA_MIN_MPS + _URA_SLOPE * (v - _URA_FROM_MPS)
-                v_delta0 = _URA_MAX_MPS if ura > _URA_MAX_MPS else ura
-            fastest = v + v_delta0 + v_delta1
-            fastest = v_target if v_target > fastest else fastest
-            traction = v + v_delta0 + half_delta1
-            traction = v_target if v_target > traction else traction
-            d_bec = traction * t_traction + (fastest + half_delta2) * t_berem
-            return curve_distance_m(fastest + v_delta2) + d_bec
-
-        return emergency_m
+        v_delta1 = a_est1 * t.t_traction_s
+        v_delta2 = a_est2 * t.t_berem_s
+        emergency = (
+            self.target.ebd_based,
+            self._accuracy_compensated,
+            self.target.speed_mps,
+            (v_delta1, v_delta2, v_delta1 / 2.0, v_delta2 / 2.0),
+            (t.t_traction_s, t.t_berem_s),
+        )
+        service_s = t.t_bs2_s if self.target.ebd_based else t.t_bs1_s
+        times = (service_s, t.t_warning_s, t.t_driver_s, t.t_indication_s)
+        return _LIMIT_CODES[limit], self.curve.arrays(), times, emergency
 
     def _check_limit(self, limit: Limit) -> None:
         if limit not in self.limits:
@@ -612,3 +551,108 @@ class BrakingModel:
             fixed=self.fixed,
             national=self.national,
         )
+
+
+# -- the bisection, compiled -------------------------------------------------------------------
+
+CurveArrays = tuple[FloatArray, FloatArray, FloatArray, float]
+"""A braking curve's squares, bands and decelerations, and twice the deceleration beyond its
+target (:meth:`BrakingCurve.arrays`)."""
+_Emergency = tuple[bool, bool, float, tuple[float, float, float, float], tuple[float, float]]
+"""EBD-based, V_ura compensated, V_target, (V_delta1, V_delta2, their halves), (T_traction,
+T_berem)."""
+
+_EBI, _SBI, _WARNING, _PERMITTED, _INDICATION = range(5)
+_LIMIT_CODES = {
+    Limit.EBI: _EBI,
+    Limit.SBI1: _SBI,
+    Limit.SBI2: _SBI,
+    Limit.WARNING: _WARNING,
+    Limit.PERMITTED: _PERMITTED,
+    Limit.INDICATION: _INDICATION,
+}
+_jit = compiled(units)
+"""The supervision's bisection compiled; V_ura's constants come from ``protocol.units``."""
+
+
+@_jit
+def _curve_distance(v: float, curve: CurveArrays) -> float:
+    """:meth:`BrakingCurve.distance_m`, the same arithmetic, operation for operation."""
+    squares, bands, decelerations, beyond_twice = curve
+    square = v * v
+    first_square: float = squares[0]
+    if square < first_square:
+        return -(first_square - square) / beyond_twice
+    k = np.searchsorted(squares, square, side="right") - 1
+    distance: float = bands[k] + (square - squares[k]) / (2.0 * decelerations[k])
+    return distance
+
+
+@_jit
+def _limit_distance(
+    v: float,
+    code: int,
+    curve: CurveArrays,
+    times: tuple[float, float, float, float],
+    emergency: _Emergency,
+) -> float:
+    """``TargetLimits._limit_m`` for the limit of that code at speed ``v`` (a test checks the
+    bits): V_ura's pieces and the built-ins' ``max`` written out as they choose."""
+    ebd_based, compensated, v_target, deltas, emergency_times = emergency
+    v_delta1, v_delta2, half_delta1, half_delta2 = deltas
+    t_traction, t_berem = emergency_times
+    t_service, t_warning, t_driver, t_indication = times
+    if ebd_based:
+        if not compensated:
+            v_delta0 = 0.0
+        elif v <= _URA_FROM_MPS:
+            v_delta0 = _URA_MIN_MPS
+        else:
+            ura = _URA_MIN_MPS + _URA_SLOPE * (v - _URA_FROM_MPS)
+            v_delta0 = _URA_MAX_MPS if ura > _URA_MAX_MPS else ura
+        fastest = v + v_delta0 + v_delta1
+        fastest = v_target if v_target > fastest else fastest
+        traction = v + v_delta0 + half_delta1
+        traction = v_target if v_target > traction else traction
+        d_bec = traction * t_traction + (fastest + half_delta2) * t_berem
+        distance = _curve_distance(fastest + v_delta2, curve) + d_bec
+        if code == _EBI:
+            return distance
+    else:
+        distance = _curve_distance(v, curve)
+    distance = distance + v * t_service
+    if code == _SBI:
+        return distance
+    if code == _WARNING:
+        return distance + v * t_warning
+    distance = distance + v * t_driver
+    if code == _PERMITTED:
+        return distance
+    return distance + v * t_indication
+
+
+@_jit
+def _limit_speed(
+    distance_m: float,
+    code: int,
+    curve: CurveArrays,
+    times: tuple[float, float, float, float],
+    emergency: _Emergency,
+) -> float:
+    """The highest speed whose limit lies at ``distance_m`` or further on, within
+    :data:`SPEED_TOLERANCE_MPS` (:meth:`TargetLimits.speed_mps`); 0 if even standstill's lies
+    further back. Every limit's distance grows with the speed: bisect for the crossing."""
+    if _limit_distance(0.0, code, curve, times, emergency) > distance_m:
+        return 0.0
+    low, high = 0.0, _SPEED_SEARCH_MPS
+    while _limit_distance(high, code, curve, times, emergency) <= distance_m:
+        low, high = high, 2.0 * high
+        if high > _SPEED_SEARCH_MAX_MPS:
+            return low
+    while high - low > SPEED_TOLERANCE_MPS:
+        middle = 0.5 * (low + high)
+        if _limit_distance(middle, code, curve, times, emergency) > distance_m:
+            high = middle
+        else:
+            low = middle
+    return low

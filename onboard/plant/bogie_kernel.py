@@ -7,8 +7,7 @@ does not take ~35 µs a substep on some sixty float operations and a dozen small
 (docs/perf.md, "The bogie compiled"). The Polach creep force and the saturated sign are
 :mod:`onboard.plant.contact`'s own functions, compiled here: one formula.
 
-Compiled on first use and cached on disk (:func:`cache_directory`): a process that finds them
-there loads them in a fraction of a second instead of compiling for several. With
+Compiled on first use and cached on disk (:mod:`onboard.runtime.compiled`); with
 ``NUMBA_DISABLE_JIT=1`` the same functions run in the interpreter, for debugging.
 
 The arrays (all float64; indices below):
@@ -25,18 +24,13 @@ The arrays (all float64; indices below):
 
 from __future__ import annotations
 
-import hashlib
 import math
-import os
-from collections.abc import Callable
-from pathlib import Path
-from typing import Any, TypeVar, cast
 
-import numba
 import numpy as np
 
 from onboard.plant import bogie_parameters, contact
 from onboard.plant.bogie_parameters import DOF
+from onboard.runtime.compiled import compiled
 from protocol import units
 from protocol.units import GRAVITY_MPS2
 
@@ -48,44 +42,11 @@ __all__ = [
     "Model",
     "State",
     "advance",
-    "cache_directory",
     "evaluate",
 ]
 
-_Function = TypeVar("_Function", bound=Callable[..., object])
-_config: Any = numba.config
-"""numba's settings, read from the environment when numba is imported (untyped)."""
-
-
-def cache_directory() -> str:
-    """Where the compiled functions are kept: numba's cache directory (``NUMBA_CACHE_DIR``, by
-    default ``$XDG_CACHE_HOME/ato/numba``), under the digest of the sources they are compiled
-    from. Numba checks only the time stamp of the file a function is defined in; these
-    functions also compile :mod:`onboard.plant.contact`'s formula and read constants of two
-    more modules, so a change to any of the four must miss the cache."""
-    digest = hashlib.sha256()
-    for module_file in (__file__, contact.__file__, bogie_parameters.__file__, units.__file__):
-        digest.update(Path(str(module_file)).read_bytes())
-    cache_home = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    base = _config.CACHE_DIR or os.path.join(cache_home, "ato", "numba")
-    return os.path.join(base, digest.hexdigest()[:16])
-
-
-_CACHE_DIRECTORY = cache_directory()
-
-
-def _jit(function: _Function) -> _Function:
-    """``function`` compiled in nopython mode on first call, cached in ``_CACHE_DIRECTORY``
-    (numba reads its cache directory when the function is decorated)."""
-    previous = _config.CACHE_DIR
-    _config.CACHE_DIR = _CACHE_DIRECTORY
-    try:
-        compiled = cast(_Function, numba.njit(cache=True)(function))
-    finally:
-        _config.CACHE_DIR = previous
-    return compiled
-
-
+_jit = compiled(contact, bogie_parameters, units)
+"""These functions inline contact's formula and read constants of two more modules."""
 _polach = _jit(contact.polach_force)
 _sign = _jit(contact.saturated_sign)
 

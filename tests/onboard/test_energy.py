@@ -329,3 +329,44 @@ def test_braking_into_a_lower_limit_stays_under_the_etcs_permitted_curve(
     assert min(margins) >= 0.0
     # ... and the plan still brakes late enough to be worth it: within 2 km/h of the curve.
     assert min(margins) <= 2 / 3.6
+
+
+def test_the_planners_compiled_loops_are_their_interpreted_twins_bit_for_bit() -> None:
+    """The planner's forward run and backward coast are compiled (onboard.runtime.compiled):
+    on a real leg's grid, with random speeds, targets and coast flags, the compiled functions
+    give the interpreter's bits (``py_func`` is the same source, interpreted)."""
+    from onboard.adf.odp_energy import LegTrack, _coast_backwards, _forward
+
+    track = LegTrack(
+        TrackMap(load_seed_line("bologna-ring")),
+        URV_PARAMETERS,
+        start_chainage_m=300.0,
+        distance_m=4000.0,
+    )
+    p = URV_PARAMETERS
+    davis = (p.davis_a_n, p.davis_b_n_per_mps, p.davis_c_n_per_mps2)
+    rng = np.random.default_rng(24)
+    n = track.steps
+    for _ in range(20):
+        targets = rng.uniform(0.0, 14.0, n + 1)
+        coasting = np.where(rng.random(n + 1) < 0.3, np.inf, rng.uniform(0.0, 16.0, n + 1))
+        envelope = rng.uniform(2.0, 20.0, n + 1)
+        coast_only = rng.random(n) < 0.1
+        arguments = (
+            float(rng.uniform(0.0, 12.0)),
+            coasting,
+            envelope * envelope,
+            targets * targets,
+            track.track_forces_n,
+            coast_only,
+            davis,
+            (p.max_traction_force_n, p.max_traction_power_w),
+            (track.effective_mass_kg, track.step_m, track.max_acceleration_mps2),
+        )
+        assert np.array_equal(_forward(*arguments), _forward.py_func(*arguments))
+        curves = [np.full(n + 1, np.inf), np.full(n + 1, np.inf)]
+        first = int(rng.integers(0, n))
+        start = (float(rng.uniform(0.0, 100.0)), targets * targets, track.track_forces_n)
+        _coast_backwards(curves[0], first, *start, davis, 2.0 * track.step_m / 9.0e3)
+        _coast_backwards.py_func(curves[1], first, *start, davis, 2.0 * track.step_m / 9.0e3)
+        assert np.array_equal(curves[0], curves[1])

@@ -257,9 +257,12 @@ def test_a_target_has_only_its_own_limits() -> None:
 def test_the_bisection_limit_function_is_the_limit_arithmetic_bit_for_bit(
     inhibit_compensation: bool,
 ) -> None:
-    """``speed_mps`` bisects on a specialised copy of ``_limit_m``: the same bits everywhere
+    """``speed_mps`` bisects on a compiled copy of ``_limit_m``: the same bits everywhere
     (the curve's gradient bands, V_ura's three pieces, accelerations either side of A_est2's
-    cap, below and above an MRSP target's speed)."""
+    cap, below and above an MRSP target's speed); and the compiled bisection finds the
+    interpreter's speed, bisecting on ``_limit_m``, to the bit."""
+    from onboard.etcs.braking import _limit_distance
+
     builder = LineBuilder(id="steps", name="Gradient steps")
     builder.straight(5_000.0, speed_kmh=160.0)
     builder.straight(3_000.0, speed_kmh=160.0, gradient_permille=10.0)
@@ -290,13 +293,42 @@ def test_the_bisection_limit_function_is_the_limit_arithmetic_bit_for_bit(
             if limit in (Limit.EBD, Limit.SBD):
                 continue
             for acceleration in (-0.5, -0.0, 0.0, 0.2, 0.4, 1.3):
-                function = limits._limit_function(limit, acceleration)
+                compiled = limits._compiled(limit, acceleration)
                 for speed in speeds:
-                    assert function(speed) == limits._limit_m(limit, speed, acceleration)
+                    expected = limits._limit_m(limit, speed, acceleration)
+                    assert _limit_distance(speed, *compiled) == expected
+                for distance_m in (-50.0, 0.0, 12.5, 400.0, 2_500.0, 9_000.0, 1e7):
+                    found = limits.speed_mps(limit, distance_m, acceleration_mps2=acceleration)
+                    assert found == _bisect(limits, limit, distance_m, acceleration)
+
+
+def _bisect(limits: TargetLimits, limit: Limit, distance_m: float, acceleration: float) -> float:
+    """``TargetLimits.speed_mps``'s bisection, interpreted, on ``_limit_m``."""
+
+    def limit_m(v: float) -> float:
+        return limits._limit_m(limit, v, acceleration)
+
+    if limit_m(0.0) > distance_m:
+        return 0.0
+    low, high = 0.0, 150.0
+    while limit_m(high) <= distance_m:
+        low, high = high, 2.0 * high
+        if high > 1e4:
+            return low
+    while high - low > 1e-6:
+        middle = 0.5 * (low + high)
+        if limit_m(middle) > distance_m:
+            high = middle
+        else:
+            low = middle
+    return low
 
 
 def test_the_curve_distance_function_is_distance_m_bit_for_bit() -> None:
-    """The closure the bisections use gives the curve's own distances, bands and beyond."""
+    """The compiled curve the bisections use gives the curve's own distances, bands and
+    beyond."""
+    from onboard.etcs.braking import _curve_distance
+
     builder = LineBuilder(id="steps", name="Gradient steps")
     builder.straight(5_000.0, speed_kmh=160.0)
     builder.straight(3_000.0, speed_kmh=160.0, gradient_permille=10.0)
@@ -304,6 +336,5 @@ def test_the_curve_distance_function_is_distance_m_bit_for_bit() -> None:
     track_map = TrackMap(builder.build(geodetic_step_m=500.0))
     target = Target(TargetKind.SPEED_DECREASE, 10_000.0, 40 * MPS_PER_KMH)
     curve = BrakingModel().target_limits(target, track_map=track_map, from_m=0.0).curve
-    distance_m = curve.distance_function()
     for speed_mps in (0.0, 5.0, 40 * MPS_PER_KMH, 11.2, 30.0, 44.4, 90.0):
-        assert distance_m(speed_mps) == curve.distance_m(speed_mps)
+        assert _curve_distance(speed_mps, curve.arrays()) == curve.distance_m(speed_mps)
