@@ -29,7 +29,7 @@ from typing import Any, TypeVar, cast
 
 import numba
 
-__all__ = ["cache_directory", "compiled"]
+__all__ = ["cache_directory", "compiled", "interpreted"]
 
 _Function = TypeVar("_Function", bound=Callable[..., object])
 _config: Any = numba.config
@@ -63,3 +63,9 @@ def compiled(*dependencies: ModuleType) -> Callable[[_Function], _Function]:
             _config.CACHE_DIR = previous
 
     return decorate
+
+
+def interpreted(function: _Function) -> _Function:
+    """The Python function a :func:`compiled` one was made from (itself when numba's JIT is
+    disabled), to run its source in the interpreter: the tests compare the two."""
+    return cast(_Function, getattr(function, "py_func", function))

@@ -336,6 +336,7 @@ def test_the_planners_compiled_loops_are_their_interpreted_twins_bit_for_bit() -
     on a real leg's grid, with random speeds, targets and coast flags, the compiled functions
     give the interpreter's bits (``py_func`` is the same source, interpreted)."""
     from onboard.adf.odp_energy import LegTrack, _coast_backwards, _forward
+    from onboard.runtime.compiled import interpreted
 
     track = LegTrack(
         TrackMap(load_seed_line("bologna-ring")),
@@ -363,10 +364,10 @@ def test_the_planners_compiled_loops_are_their_interpreted_twins_bit_for_bit() -
             (p.max_traction_force_n, p.max_traction_power_w),
             (track.effective_mass_kg, track.step_m, track.max_acceleration_mps2),
         )
-        assert np.array_equal(_forward(*arguments), _forward.py_func(*arguments))
+        assert np.array_equal(_forward(*arguments), interpreted(_forward)(*arguments))
         curves = [np.full(n + 1, np.inf), np.full(n + 1, np.inf)]
         first = int(rng.integers(0, n))
         start = (float(rng.uniform(0.0, 100.0)), targets * targets, track.track_forces_n)
         _coast_backwards(curves[0], first, *start, davis, 2.0 * track.step_m / 9.0e3)
-        _coast_backwards.py_func(curves[1], first, *start, davis, 2.0 * track.step_m / 9.0e3)
+        interpreted(_coast_backwards)(curves[1], first, *start, davis, 2.0 * track.step_m / 9.0e3)
         assert np.array_equal(curves[0], curves[1])
