@@ -114,52 +114,68 @@ def _dot(row: np.ndarray, x: np.ndarray) -> float:
 
 
 @_jit
+def _wheelset(
+    axle: int,
+    q: np.ndarray,
+    v: np.ndarray,
+    actuators: np.ndarray,
+    terms: np.ndarray,
+    forces: np.ndarray,
+    c: np.ndarray,
+    static_friction: float,
+) -> None:
+    """One wheelset's creep force, brake, rolling and motor torques into ``forces``, and its
+    terms and stiff slopes into its row of ``terms``. The motor's torque is its lagged
+    reference limited by the torque–speed curve (max torque, then max power)."""
+    radius, beta = c[_RADIUS], c[_BETA]
+    ix, iz, ispin = _X[axle], _Z[axle], _SPIN[axle]
+    normal = c[_STATIC_LOAD] - c[_CONTACT_STIFFNESS] * q[iz] - c[_CONTACT_DAMPING] * v[iz]
+    spin = v[ispin]
+    slip = v[ix] - radius * spin
+    creep, creep_slope = _polach(
+        slip,
+        v[ix],
+        normal,
+        static_friction,
+        c[_FRICTION_RATIO],
+        c[_DECAY_RATE],
+        c[_CREEP_COEFFICIENT],
+        c[_REDUCTION_ADHESION],
+        c[_REDUCTION_SLIP],
+    )
+    relative_spin = spin + v[_PITCH]
+    brake_gain = c[_BRAKE_GAIN] * actuators[2 + axle]
+    brake = -brake_gain * _sign(relative_spin, beta)
+    rolling_gain = max(normal, 0.0) * radius * c[_ROLLING_COEFFICIENT]
+    rolling = -rolling_gain * _sign(spin, beta)
+    limit = c[_MAX_TORQUE]
+    speed = abs(spin)
+    if speed * limit > c[_MAX_POWER]:
+        limit = c[_MAX_POWER] / speed
+    motor = min(max(actuators[axle], -limit), limit)
+    forces[ix] += creep
+    forces[ispin] += motor + brake + rolling - radius * creep
+    forces[_PITCH] += motor + brake
+    t = terms[axle]
+    t[CREEP], t[CREEP_SLOPE], t[SLIP] = creep, creep_slope, slip
+    t[BRAKE] = brake
+    t[BRAKE_SLOPE] = -brake_gain / beta if abs(relative_spin) < beta else 0.0
+    t[ROLLING] = rolling
+    t[ROLLING_SLOPE] = -rolling_gain / beta if speed < beta else 0.0
+    t[MOTOR], t[NORMAL] = motor, normal
+
+
+@_jit
 def evaluate(state: State, model: Model, gravity: Gravity, adhesion_factor: float) -> None:
     """Q less drag and gravity, each wheelset's terms and stiff slopes, at the current state."""
     q, v, actuators, terms, loads, _ = state
-    _, _, vectors, constants = model
+    _, _, vectors, c = model
     sin_a, cos_a = gravity
-    c = constants
-    radius, beta = c[_RADIUS], c[_BETA]
     static_friction = c[_STATIC_FRICTION] * adhesion_factor
     forces = loads[_FORCES]
     forces[:] = 0.0
     for axle in range(2):
-        ix, iz, ispin = _X[axle], _Z[axle], _SPIN[axle]
-        normal = c[_STATIC_LOAD] - c[_CONTACT_STIFFNESS] * q[iz] - c[_CONTACT_DAMPING] * v[iz]
-        spin = v[ispin]
-        slip = v[ix] - radius * spin
-        creep, creep_slope = _polach(
-            slip,
-            v[ix],
-            normal,
-            static_friction,
-            c[_FRICTION_RATIO],
-            c[_DECAY_RATE],
-            c[_CREEP_COEFFICIENT],
-            c[_REDUCTION_ADHESION],
-            c[_REDUCTION_SLIP],
-        )
-        relative_spin = spin + v[_PITCH]
-        brake_gain = c[_BRAKE_GAIN] * actuators[2 + axle]
-        brake = -brake_gain * _sign(relative_spin, beta)
-        rolling_gain = max(normal, 0.0) * radius * c[_ROLLING_COEFFICIENT]
-        rolling = -rolling_gain * _sign(spin, beta)
-        limit = c[_MAX_TORQUE]
-        speed = abs(spin)
-        if speed * limit > c[_MAX_POWER]:
-            limit = c[_MAX_POWER] / speed
-        motor = min(max(actuators[axle], -limit), limit)
-        forces[ix] += creep
-        forces[ispin] += motor + brake + rolling - radius * creep
-        forces[_PITCH] += motor + brake
-        t = terms[axle]
-        t[CREEP], t[CREEP_SLOPE], t[SLIP] = creep, creep_slope, slip
-        t[BRAKE] = brake
-        t[BRAKE_SLOPE] = -brake_gain / beta if abs(relative_spin) < beta else 0.0
-        t[ROLLING] = rolling
-        t[ROLLING_SLOPE] = -rolling_gain / beta if speed < beta else 0.0
-        t[MOTOR], t[NORMAL] = motor, normal
+        _wheelset(axle, q, v, actuators, terms, forces, c, static_friction)
     air_speed = _dot(vectors[_LONGITUDINAL], v)
     dynamic = 0.5 * c[_AIR_DENSITY] * air_speed * abs(air_speed)
     drag = dynamic * c[_DRAG_AREA]
