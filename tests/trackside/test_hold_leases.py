@@ -92,11 +92,14 @@ def test_an_expired_hold_is_free_for_another_driver(leasing: TestClient) -> None
 
 def test_selecting_again_and_commanding_renew_the_lease(leasing: TestClient) -> None:
     alice = _driver(leasing, "alice")
+    # A quarter of the lease passes between the calls: the expiry must move, and the three
+    # quarters left cover a request's way through a loaded machine (half a second did not, in
+    # a full run beside other work: the lease ran out first).
     first = _expiry(leasing.post(f"{V}/select", headers=alice).json())
-    assert wait_for(lambda: datetime.now(UTC) > first - timedelta(seconds=LEASE_S / 2))
+    assert wait_for(lambda: datetime.now(UTC) > first - timedelta(seconds=LEASE_S * 3 / 4))
     second = _expiry(leasing.post(f"{V}/select", headers=alice).json())
     assert second > first
-    assert wait_for(lambda: datetime.now(UTC) > second - timedelta(seconds=LEASE_S / 2))
+    assert wait_for(lambda: datetime.now(UTC) > second - timedelta(seconds=LEASE_S * 3 / 4))
     # URV7 answers no command (504), but the holder's command has renewed the hold first.
     assert leasing.post(f"{V}/engage", headers=alice).status_code == 504
     third = _expiry(_holder(leasing, alice), "hold_expires_at")
