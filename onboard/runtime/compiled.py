@@ -59,6 +59,8 @@ def compiled(*dependencies: ModuleType) -> Callable[[_Function], _Function]:
         _config.CACHE_DIR = cache_directory(*files)  # numba reads it when it decorates
         try:
             return cast(_Function, numba.njit(cache=True)(function))
+        except RuntimeError:  # no writable place for a cache: compiled in each process
+            return cast(_Function, numba.njit(function))
         finally:
             _config.CACHE_DIR = previous
 
