@@ -15,6 +15,7 @@ ahead, their identity and location, what a detection is, and which readings a fa
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Hashable
 from typing import Generic, TypeVar
@@ -23,12 +24,16 @@ import numpy as np
 
 from trackdb import TrackMap
 
-__all__ = ["PointReader"]
+__all__ = ["LOOK_AHEAD_M", "PointReader"]
 
 Point = TypeVar("Point")
 Detection = TypeVar("Detection")
 Pass = tuple[Hashable, int]
 """A pass over a point: the point's identity and the lap."""
+LOOK_AHEAD_M = 100.0
+"""How far beyond its window a reader looks for the next point [m]: while the front has not
+come within reach of it, a tick asks the track for nothing (about ten seconds of ticks at
+40 km/h)."""
 
 
 class PointReader(ABC, Generic[Point, Detection]):
@@ -79,6 +84,10 @@ class PointReader(ABC, Generic[Point, Detection]):
         """The drawn error of each pass not yet read."""
         self._done: set[Pass] = set()
         """The passes read, lost, or behind the start, still near enough to be seen again."""
+        self._clear_until_m = -math.inf
+        """While the front plus the bound stays below this [m], no point is within reach: the
+        last window held none, and the nearest point beyond it lies here (a step then does
+        nothing but move the furthest position)."""
 
     # -- what a subclass says ----------------------------------------------------------------------
 
@@ -139,6 +148,12 @@ class PointReader(ABC, Generic[Point, Detection]):
         furthest_m = self._furthest_m
         if front_position_m <= furthest_m:
             return []
+        if front_position_m + self.location_bound_m < self._clear_until_m:
+            # No point lies from the furthest position less the bound to the front plus the
+            # bound (the last look ahead found none before _clear_until_m): nothing to read,
+            # and no pass to forget.
+            self._furthest_m = front_position_m
+            return []
         detections: list[Detection] = []
         for key, point, location_m in self._passes(front_position_m):
             if key in self._done:
@@ -169,14 +184,20 @@ class PointReader(ABC, Generic[Point, Detection]):
         left behind for good are forgotten."""
         bound_m = self.location_bound_m
         start_m = self._furthest_m - bound_m
-        ahead = self.points_ahead(start_m, front_m + bound_m - start_m)
+        window_m = front_m + bound_m - start_m
+        ahead = self.points_ahead(start_m, window_m + LOOK_AHEAD_M)
         length_m = self.track_map.length_m
         ring = self.track_map.line.ring
         passes: list[tuple[Pass, Point, float]] = []
+        clear_until_m = start_m + window_m + LOOK_AHEAD_M
         for point, distance_m in ahead:
+            if distance_m > window_m:  # the nearest point beyond the window
+                clear_until_m = start_m + distance_m
+                break
             location_m = start_m + distance_m
             lap = round((location_m - self.chainage_m(point)) / length_m) if ring else 0
             passes.append(((self.identity(point), lap), point, location_m))
+        self._clear_until_m = -math.inf if passes else clear_until_m
         # A pass before the window's start can never come back into it (the start only moves
         # forward); its error was used.
         keys = {key for key, _, _ in passes}

@@ -123,3 +123,34 @@ def test_the_first_step_places_the_reader_without_reading_behind_it() -> None:
 def test_a_bound_below_sigma_is_refused() -> None:
     with pytest.raises(ValueError, match="location_bound_m"):
         BaliseReader(RING, rng=np.random.default_rng(0), location_sigma_m=2.0)
+
+
+class _AlwaysLooking(BaliseReader):
+    """The reader without its look ahead: every tick asks the track for its window."""
+
+    def _passes(self, front_m: float):
+        passes = super()._passes(front_m)
+        self._clear_until_m = -math.inf
+        return passes
+
+
+def test_skipping_ticks_with_nothing_in_reach_reads_the_same() -> None:
+    """The look ahead (``LOOK_AHEAD_M``) only spares the ticks with no point within reach: over
+    two laps of the ring with random speeds, standstills and roll-backs, the same detections,
+    errors and counts as a reader that looks at every tick."""
+    rng = np.random.default_rng(24)
+    readers = [
+        cls(RING, rng=np.random.default_rng(5), location_sigma_m=0.4, location_bound_m=1.0)
+        for cls in (BaliseReader, _AlwaysLooking)
+    ]
+    front_m = 5500.0
+    found: list[list[BaliseDetection]] = [[], []]
+    for tick in range(60_000):
+        front_m += float(rng.choice([0.0, -0.02, 0.05, 0.2, 0.4], p=[0.05, 0.05, 0.2, 0.3, 0.4]))
+        for reader, detections in zip(readers, found, strict=True):
+            detections += reader.step(tick * DT_S, front_m)
+    assert front_m > 5500.0 + 2 * RING.length_m
+    assert found[0] == found[1]
+    assert len(found[0]) >= 8
+    assert readers[0].last_errors_m == readers[1].last_errors_m
+    assert (readers[0].read, readers[0].missed) == (readers[1].read, readers[1].missed)
