@@ -53,7 +53,6 @@ from onboard.adf.odp import (
     OdpPlan,
     held_under,
 )
-from onboard.plant import point_mass
 from onboard.plant.point_mass import MIN_POWER_SPEED_MPS, PointMassParameters
 from onboard.runtime.compiled import compiled
 from protocol.units import MPS_PER_KMH
@@ -471,7 +470,7 @@ class _Profiles:
             track.track_forces_n,
             coast_only,
             (m.davis_a_n, m.davis_b_n_per_mps, m.davis_c_n_per_mps2),
-            (m.max_traction_force_n, m.max_traction_power_w),
+            (m.max_traction_force_n, m.max_traction_power_w, MIN_POWER_SPEED_MPS),
             (track.effective_mass_kg, track.step_m, track.max_acceleration_mps2),
         )
 
@@ -493,8 +492,8 @@ class _Profiles:
         return float(_cumulative(self.track, speeds)[1][-1])
 
 
-_jit = compiled(point_mass)
-"""The planner's loops, compiled; they read point_mass's MIN_POWER_SPEED_MPS."""
+_jit = compiled()
+"""The planner's loops, compiled (they read constants of this module only)."""
 
 
 @_jit
@@ -506,14 +505,15 @@ def _forward(
     track_n: FloatArray,
     coast_only: npt.NDArray[np.bool_],
     davis: tuple[float, float, float],
-    traction_limits: tuple[float, float],
+    traction_limits: tuple[float, float, float],
     motion: tuple[float, float, float],
 ) -> FloatArray:
     """The forward run of :meth:`_Profiles.speeds` from ``initial_mps`` over the grid:
-    ``davis`` (A, B, C), ``traction_limits`` (force, power), ``motion`` (effective mass, step,
-    largest acceleration). ``min`` and ``max`` are written out as the built-ins choose."""
+    ``davis`` (A, B, C), ``traction_limits`` (force, power, the speed below which power does
+    not limit), ``motion`` (effective mass, step, largest acceleration). ``min`` and ``max``
+    are written out as the built-ins choose."""
     a_n, b_n, c_n = davis
-    f_max, p_max = traction_limits
+    f_max, p_max, min_power_speed = traction_limits
     mass, h, a_max = motion
     n = track_n.shape[0]
     coast_k = 2.0 * h / mass
@@ -529,7 +529,7 @@ def _forward(
             v2 = coast_v2
         else:
             traction = f_max
-            if v > MIN_POWER_SPEED_MPS and p_max < f_max * v:
+            if v > min_power_speed and p_max < f_max * v:
                 traction = p_max / v
             acceleration = (traction - resistance) / mass
             if acceleration > a_max:

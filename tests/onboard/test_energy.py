@@ -336,6 +336,7 @@ def test_the_planners_compiled_loops_are_their_interpreted_twins_bit_for_bit() -
     on a real leg's grid, with random speeds, targets and coast flags, the compiled functions
     give the interpreter's bits (``py_func`` is the same source, interpreted)."""
     from onboard.adf.odp_energy import LegTrack, _coast_backwards, _forward
+    from onboard.plant.point_mass import MIN_POWER_SPEED_MPS
     from onboard.runtime.compiled import interpreted
 
     track = LegTrack(
@@ -361,7 +362,7 @@ def test_the_planners_compiled_loops_are_their_interpreted_twins_bit_for_bit() -
             track.track_forces_n,
             coast_only,
             davis,
-            (p.max_traction_force_n, p.max_traction_power_w),
+            (p.max_traction_force_n, p.max_traction_power_w, MIN_POWER_SPEED_MPS),
             (track.effective_mass_kg, track.step_m, track.max_acceleration_mps2),
         )
         assert np.array_equal(_forward(*arguments), interpreted(_forward)(*arguments))
