@@ -399,9 +399,8 @@ class _Profiles:
             force = track.resistance_n(onset) + float(track.track_forces_n[first])
             v2 = onset**2 + 2.0 * force / track.effective_mass_kg * (onset_m - first * h)
             m = track.model
-            coasted = curves.copy()
             _coast_backwards(
-                coasted,
+                curves,
                 first,
                 v2,
                 targets_v2,
@@ -409,7 +408,6 @@ class _Profiles:
                 (m.davis_a_n, m.davis_b_n_per_mps, m.davis_c_n_per_mps2),
                 2.0 * h / track.effective_mass_kg,
             )
-            curves = np.minimum(curves, coasted)
         return curves
 
     def descent_curves(self, holding_mps: float) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
@@ -443,17 +441,15 @@ class _Profiles:
         ``low`` [m/s], back to where it meets the targets."""
         track = self.track
         m = track.model
-        coast_k = 2.0 * track.step_m / track.effective_mass_kg
-        v2 = low * low
-        for i in range(end, -1, -1):
-            v2 = max(v2, CRAWL_MPS**2)
-            if v2 >= float(targets[i]) ** 2:
-                break
-            v = math.sqrt(v2)
-            curves[i] = min(curves[i], v)
-            if i > 0:
-                resistance = m.davis_a_n + m.davis_b_n_per_mps * v + m.davis_c_n_per_mps2 * v2
-                v2 += coast_k * (resistance + float(track.track_forces_n[i - 1]))
+        _coast_backwards(
+            curves,
+            end,
+            low * low,
+            targets * targets,
+            track.track_forces_n,
+            (m.davis_a_n, m.davis_b_n_per_mps, m.davis_c_n_per_mps2),
+            2.0 * track.step_m / track.effective_mass_kg,
+        )
 
     def speeds(self, holding_mps: float, onset_mps: float) -> FloatArray:
         """The profile: drive below the coasting curves, coast on or above them, never above
@@ -564,7 +560,8 @@ def _coast_backwards(
     coast_k: float,
 ) -> None:
     """Lower ``curves`` from point ``first`` backwards to the coasting curve that has v² =
-    ``v2`` there, back to where it meets the targets (:meth:`_Profiles.coasting_curves`)."""
+    ``v2`` there, back to where it meets the targets (:meth:`_Profiles.coasting_curves`, and
+    ``_coast_back`` before a descent)."""
     a_n, b_n, c_n = davis
     crawl_v2 = CRAWL_MPS**2
     for i in range(first, -1, -1):
